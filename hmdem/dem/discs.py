@@ -1,0 +1,67 @@
+"""Quasi-2D discs in YADE: spheres in the plane z = 0 that behave as 1 m thick discs.
+
+Digest seed 004 §15.1: per-particle ``FrictMat(young = k_n / r, poisson = k_s / k_n,
+density = 3 rho (1 m) / (4 r))`` makes ``Ip2_FrictMat_FrictMat_FrictPhys`` give exactly
+k_n = k_s = k for any radius pair and the sphere mass equal to the disc mass rho pi r^2 (1 m);
+the inertia is overridden with the disc value m r^2 / 2.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..yade_env import import_yade
+
+DEPTH = 1.0  # out-of-plane disc thickness [m]
+
+
+def disc_material(radius: float, k_n: float, ks_over_kn: float, friction: float, density: float):
+    """FrictMat that turns a sphere of this radius into a 1 m thick disc (digest §15.1)."""
+    import_yade()
+    from yade.wrapper import FrictMat
+
+    return FrictMat(
+        young=k_n / radius,
+        poisson=ks_over_kn,
+        frictionAngle=math.atan(friction),
+        density=3.0 * density * DEPTH / (4.0 * radius),
+    )
+
+
+def add_disc(x: float, y: float, radius: float, material) -> int:
+    """Append one disc body (z fixed, no out-of-plane rotation) and return its id."""
+    import_yade()
+    from yade import O, utils
+    from yade.minieigenHP import Vector3
+
+    b = utils.sphere((x, y, 0.0), radius, material=material)
+    b.state.blockedDOFs = "zXY"
+    inertia = 0.5 * b.state.mass * radius**2
+    b.state.inertia = Vector3(inertia, inertia, inertia)
+    return O.bodies.append(b)
+
+
+def disc_state(ids: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Centres (n, 2) and radii (n,) of the given bodies."""
+    import_yade()
+    from yade import O
+
+    centres = np.array([[O.bodies[i].state.pos[0], O.bodies[i].state.pos[1]] for i in ids])
+    radii = np.array([O.bodies[i].shape.radius for i in ids])
+    return centres, radii
+
+
+def disc_contacts(ids: list[int]) -> np.ndarray:
+    """Real disc-disc interactions as index pairs into ``ids`` (i < j)."""
+    import_yade()
+    from yade import O
+
+    index = {b: k for k, b in enumerate(ids)}
+    pairs = [
+        (index[i.id1], index[i.id2])
+        for i in O.interactions
+        if i.isReal and i.id1 in index and i.id2 in index
+    ]
+    return np.sort(np.array(pairs, dtype=int).reshape(-1, 2), axis=1)

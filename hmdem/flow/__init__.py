@@ -1,0 +1,1 @@
+"""Flow solvers: implicit/explicit two-phase pore-network model (no YADE here)."""

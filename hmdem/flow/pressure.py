@@ -1,0 +1,131 @@
+"""Implicit pressure equation with capillary-threshold front pipes (seed 004 Eqs. 2, 6, 7, 15-17).
+
+Backward Euler in pressure for every unknown domain i:
+
+    (V_i / (K_i dt)) (p_i^{n+1} - p_i^n) + dV_i/dt + sum_j q_ij = q_in,i
+
+with q_ij = G_ij (p_i - p_j) on ordinary pipes (Eq. 1) and, on front pipes from invading side
+u to defending side d, q_ud = G max(p_u - p_d + p_c, 0) (Eq. 6). The max() is resolved by an
+active-set (semismooth Newton) loop over the blocked set C (digest §5.2 [INTERP]); each pass
+solves the symmetric M-matrix system of Eqs. 16-17, where the p_c source enters row u with -G p_c
+and row d with +G p_c (digest §5.2 [DERIVED]).
+
+Outflow domains are Dirichlet (p = 0) and are not unknowns. Domains that share a node index are
+one unknown: that is how the inlet manifold is expressed (all inflow domains at one pressure).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .sparse import CsrPattern, solve_spd
+
+MAX_ACTIVE_SET_PASSES = 40
+
+
+@dataclass
+class PressureSolution:
+    pressure: np.ndarray  # per domain, Dirichlet domains at 0
+    pipe_flux: np.ndarray  # per flowing pipe, from end a to end b [m^3/s per m]
+    blocked: np.ndarray  # per flowing pipe, True if a front pipe is held shut by capillarity
+    margin: np.ndarray  # per flowing pipe, orient (p_a - p_b) + p_c (front pipes only, else 0)
+    passes: int
+
+
+class PressureSystem:
+    """Topology-fixed part of the implicit system: unknown numbering and CSR pattern.
+
+    ``pipe_a``, ``pipe_b``: domain ids at the two ends of each flowing pipe.
+    ``node``: unknown index per domain, -1 for Dirichlet (p = 0) domains.
+    Pipes whose two ends map to the same unknown, or both to Dirichlet, carry no flow and must
+    not be passed in.
+    """
+
+    def __init__(self, pipe_a: np.ndarray, pipe_b: np.ndarray, node: np.ndarray):
+        self.pipe_a, self.pipe_b, self.node = pipe_a, pipe_b, node
+        self.n_unknowns = int(node.max()) + 1 if node.size and node.max() >= 0 else 0
+        na, nb = node[pipe_a], node[pipe_b]
+        if np.any((na == nb) & (na >= 0)) or np.any((na < 0) & (nb < 0)):
+            raise ValueError("pipes joining one unknown to itself or two Dirichlet domains carry no flow")
+        self.na, self.nb = na, nb
+        self.va, self.vb = na >= 0, nb >= 0
+        self.vab = self.va & self.vb
+        n = self.n_unknowns
+        diag = np.arange(n)
+        rows = np.concatenate([diag, na[self.va], nb[self.vb], na[self.vab], nb[self.vab]])
+        cols = np.concatenate([diag, na[self.va], nb[self.vb], nb[self.vab], na[self.vab]])
+        self.pattern = CsrPattern(rows, cols, n)
+        self.domain_is_unknown = node >= 0
+
+    def to_nodes(self, per_domain: np.ndarray) -> np.ndarray:
+        """Sum a per-domain quantity onto the unknowns (Dirichlet domains dropped)."""
+        m = self.domain_is_unknown
+        return np.bincount(self.node[m], weights=per_domain[m], minlength=self.n_unknowns)
+
+    def matrix(self, storage_node: np.ndarray, g_open: np.ndarray):
+        values = np.concatenate([storage_node, g_open[self.va], g_open[self.vb], -g_open[self.vab], -g_open[self.vab]])
+        return self.pattern.matrix(values)
+
+    def pipe_source_to_nodes(self, s: np.ndarray) -> np.ndarray:
+        """Row contributions of a pipe source s (flux a -> b held fixed): row a gets -s, row b +s."""
+        out = np.zeros(self.n_unknowns)
+        np.subtract.at(out, self.na[self.va], s[self.va])
+        np.add.at(out, self.nb[self.vb], s[self.vb])
+        return out
+
+    def solve(
+        self,
+        storage: np.ndarray,
+        rhs: np.ndarray,
+        conductance: np.ndarray,
+        orient: np.ndarray,
+        entry_pressure: np.ndarray,
+        blocked: np.ndarray,
+        p_guess: np.ndarray | None = None,
+        hold_blocked: bool = False,
+    ) -> PressureSolution:
+        """Solve Eqs. 15-17 for p^{n+1}.
+
+        storage: V_i / (K_i dt) per domain; rhs: (V_i/(K_i dt)) p_i^n - dV_i/dt + q_in,i per domain.
+        conductance: G per flowing pipe (Eq. 1). orient: +1 if end a is the invading side of a
+        front pipe, -1 if end b is, 0 for ordinary pipes. entry_pressure: p_c per pipe (Eq. 5).
+        blocked: starting guess for C. hold_blocked=True keeps C fixed (used by Eq. 19).
+        """
+        front = orient != 0
+        storage_node = self.to_nodes(storage)
+        rhs_node = self.to_nodes(rhs)
+        blocked = blocked & front
+        seen: set[bytes] = set()
+        for passes in range(1, MAX_ACTIVE_SET_PASSES + 1):
+            used = blocked
+            g_open = np.where(blocked, 0.0, conductance)
+            cap_flux = orient * g_open * entry_pressure  # capillary part of the a -> b flux
+            A = self.matrix(storage_node, g_open)
+            B = rhs_node + self.pipe_source_to_nodes(cap_flux)
+            p_node = solve_spd(A, B)
+            p = np.zeros(len(self.node))
+            p[self.domain_is_unknown] = p_node[self.node[self.domain_is_unknown]]
+            dp = p[self.pipe_a] - p[self.pipe_b]
+            margin = np.where(front, orient * dp + entry_pressure, 0.0)
+            if hold_blocked:
+                break
+            new_blocked = front & (margin <= 0.0)
+            if np.array_equal(new_blocked, blocked):
+                break
+            key = np.packbits(new_blocked).tobytes()
+            if key in seen:  # cycling between two sets: keep their union shut (conservative)
+                hold_blocked = True
+                new_blocked = blocked | new_blocked
+            seen.add(key)
+            blocked = new_blocked
+        flux = g_open * dp + cap_flux
+        return PressureSolution(p, flux, used, margin, passes)
+
+    def divergence(self, pipe_flux: np.ndarray) -> np.ndarray:
+        """Net pipe outflow of every domain, sum_j q_ij (per domain, Dirichlet ones included)."""
+        n = len(self.node)
+        return np.bincount(self.pipe_a, weights=pipe_flux, minlength=n) - np.bincount(
+            self.pipe_b, weights=pipe_flux, minlength=n
+        )

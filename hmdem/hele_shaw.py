@@ -1,0 +1,149 @@
+"""Command line: two-phase displacement in a granular Hele-Shaw cell (seed 004).
+
+    python -m hmdem.hele_shaw                       # the vf case into a fresh run directory
+    python -m hmdem.hele_shaw linear --case cf1 --seed 3 --out runs/cf1
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+from . import __version__
+from .cases import CASES
+
+CASE_NAMES = tuple(CASES)
+
+
+class InputError(ValueError):
+    """Bad command-line input: one line, exit status 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, exit 2, nothing written
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def positive(name):
+    def parse(text):
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a positive finite number, got {text!r}") from None
+        if not math.isfinite(v) or v <= 0:
+            raise argparse.ArgumentTypeError(f"{name} must be a positive finite number, got {text!r}")
+        return v
+    return parse
+
+
+def non_negative_int(text):
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--seed must be a non-negative integer, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"--seed must be a non-negative integer, got {text!r}")
+    return v
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="python -m hmdem.hele_shaw", description=__doc__.split("\n")[0])
+    parser.add_argument("--version", action="version", version=__version__)
+    sub = parser.add_subparsers(dest="command", parser_class=_Parser)
+    lin = sub.add_parser("linear", help="fixed-grain cases of seed 004 §4.1 and App. D")
+    lin.add_argument("--case", choices=CASE_NAMES, default="vf", help="vf, cf1, sd, cf2 (Lenormand), chen, darcy")
+    rate = lin.add_mutually_exclusive_group()
+    rate.add_argument("--ca-star", type=positive("--ca-star"), help="modified capillary number Ca* (seed 004 Eq. 24)")
+    rate.add_argument("--rate", type=positive("--rate"), help="injection rate Q [m^3/s per metre of cell depth]")
+    lin.add_argument("--viscosity-ratio", type=positive("--viscosity-ratio"),
+                     help="M = eta_inv / eta_def; eta_def is kept, eta_inv = M eta_def")
+    lin.add_argument("--mean-aperture", type=positive("--mean-aperture"), help="mean pipe aperture [m] (default 0.42e-3)")
+    lin.add_argument("--seed", type=non_negative_int, default=0, help="aperture field seed (default 0)")
+    lin.add_argument("--dt", type=positive("--dt"), help="nominal flow step [s] (default per case)")
+    lin.add_argument("--scheme", choices=("implicit", "explicit"), default="implicit")
+    lin.add_argument("--inlet", choices=("manifold", "split"), default="manifold",
+                     help="manifold: inflow domains share one pressure (default); split: Q/N_in each")
+    lin.add_argument("--t-max", type=positive("--t-max"), help="stop at this simulated time [s]")
+    lin.add_argument("--max-steps", type=positive("--max-steps"), help="stop after this many steps")
+    lin.add_argument("--packing", type=Path, help="packing .npz (default: the shipped 65 mm packing)")
+    lin.add_argument("--out", type=Path, help="run directory to create (default runs/<case>-<time>)")
+    lin.add_argument("--quiet", action="store_true", help="no progress bar")
+    return parser
+
+
+def make_case(args):
+    """The named case with the command-line overrides applied."""
+    case = CASES[args.case]
+    changes = {k: getattr(args, k) for k in ("dt", "mean_aperture", "t_max") if getattr(args, k) is not None}
+    if args.viscosity_ratio is not None:
+        changes["fluids"] = replace(case.fluids, viscosity_inv=args.viscosity_ratio * case.fluids.viscosity_def)
+    if args.ca_star is not None:
+        changes.update(ca_star=args.ca_star, rate=None)
+    if args.rate is not None:
+        changes["rate"] = args.rate
+    return replace(case, **changes)
+
+
+def run_linear(args) -> int:
+    from .report import write_run
+    from .scenario import build_scenario
+    from .flow.simulation import FlowModel
+
+    if args.packing is not None and not args.packing.is_file():
+        raise InputError(f"--packing: no such file {str(args.packing)!r}")
+    out = args.out or Path("runs") / f"{args.case}-{time.strftime('%Y%m%d-%H%M%S')}"
+    if out.exists():
+        raise InputError(f"--out: {str(out)!r} already exists; choose a new run directory")
+    case = make_case(args)
+    sc = build_scenario(case, seed=args.seed, inlet=args.inlet, scheme=args.scheme, packing_path=args.packing)
+    if args.max_steps is not None:
+        sc.setup.max_steps = int(args.max_steps)
+    model = FlowModel(sc.net, sc.setup)
+    bar = None
+    callback = None
+    if not args.quiet:
+        from tqdm import tqdm
+
+        bar = tqdm(total=100, unit="%", desc=f"{case.name} front", file=sys.stderr,
+                   bar_format="{desc}: {percentage:3.0f}%|{bar}| {postfix}")
+
+        def callback(m, st, _last=[0.0]):
+            frac = st.t / sc.setup.t_max if not sc.setup.two_phase else m.progress(st)
+            now = time.perf_counter()
+            if now - _last[0] > 0.2:
+                _last[0] = now
+                bar.n = round(100 * frac, 1)
+                bar.set_postfix_str(f"t={st.t:.4g} s, steps={m.record.steps}, invaded={int(st.invaded.sum())}")
+    state, rec = model.run(progress=callback)
+    if bar is not None:
+        bar.n = round(100 * (1.0 if rec.status == "breakthrough" else bar.n / 100), 1)
+        bar.close()
+    summary = write_run(out, sc, model, state, rec, seed=args.seed, argv=sys.argv[1:])
+    print(f"{case.name}: {rec.status} at t = {state.t:.4g} s after {rec.steps} steps; regime: {summary['regime']}, "
+          f"D_f = {summary['fractal_dimension']:.3f}, peak injection pressure {summary['peak_injection_pressure_pa']:.4g} Pa")
+    print(f"run directory: {out}")
+    return 130 if rec.status == "interrupted" else 0
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0].startswith("--") and argv[0] not in ("--help", "-h", "--version"):
+        argv = ["linear", *argv]
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        if args.command == "linear":
+            return run_linear(args)
+    except InputError as exc:
+        print(f"{parser.prog}: error: {exc}", file=sys.stderr)
+        return 2
+    parser.print_help()
+    return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

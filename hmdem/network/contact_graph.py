@@ -1,0 +1,131 @@
+"""Network = faces of the planar contact graph of a disc packing (seed 004 §2.1; digest §3, §15.2).
+
+A domain is a bounded face of the graph whose vertices are grain centres and whose edges are
+grain-grain contacts; a pipe sits at each contact. Built as in digest §15.2 item 5: Delaunay
+triangles of the centres are glued across Delaunay edges that are *not* contacts; each glued
+region that does not reach the convex hull through a non-contact edge is one domain. Domain
+volume is the full centre-polygon area x 1 m (digest §3.3).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import Delaunay, cKDTree
+
+from .network import OUTSIDE, Network
+
+
+def find_contacts(centres: np.ndarray, radii: np.ndarray, tolerance: float = 1e-3) -> np.ndarray:
+    """Pairs (i < j) of discs whose gap is at most ``tolerance`` x the smaller radius."""
+    tree = cKDTree(centres)
+    pairs = tree.query_pairs(2.0 * radii.max() * (1 + tolerance), output_type="ndarray")
+    if len(pairs) == 0:
+        return np.zeros((0, 2), int)
+    i, j = pairs[:, 0], pairs[:, 1]
+    dist = np.linalg.norm(centres[i] - centres[j], axis=1)
+    gap = dist - radii[i] - radii[j]
+    keep = gap <= tolerance * np.minimum(radii[i], radii[j])
+    return np.sort(pairs[keep], axis=1)
+
+
+def main_component(n_grains: int, contacts: np.ndarray) -> np.ndarray:
+    """Contacts of the largest connected cluster; floating clusters and rattlers are dropped."""
+    graph = coo_matrix((np.ones(len(contacts)), (contacts[:, 0], contacts[:, 1])), shape=(n_grains, n_grains))
+    _, label = connected_components(graph, directed=False)
+    sizes = np.bincount(label[contacts[:, 0]], minlength=label.max() + 1)
+    return contacts[label[contacts[:, 0]] == np.argmax(sizes)]
+
+
+def _triangle_areas(points: np.ndarray, simplices: np.ndarray) -> np.ndarray:
+    a, b, c = points[simplices[:, 0]], points[simplices[:, 1]], points[simplices[:, 2]]
+    return 0.5 * np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1]))
+
+
+def build_contact_network(centres: np.ndarray, radii: np.ndarray, contacts: np.ndarray | None = None) -> Network:
+    """Build domains and pipes from disc centres, radii and contact pairs.
+
+    Pipes have length r1 + r2 (seed 004 Eq. 1); apertures are left at zero for the caller
+    (fixed grains: :func:`hmdem.network.apertures.uniform_apertures`). Contacts of clusters not
+    connected to the main contact graph are dropped so that the Euler check holds.
+    """
+    centres = np.asarray(centres, float)
+    radii = np.asarray(radii, float)
+    n = len(centres)
+    if contacts is None:
+        contacts = find_contacts(centres, radii)
+    contacts = main_component(n, np.sort(np.asarray(contacts, int), axis=1))
+    contact_keys = contacts[:, 0].astype(np.int64) * n + contacts[:, 1]
+
+    tri = Delaunay(centres)
+    simp, nbr = tri.simplices, tri.neighbors
+    n_tri = len(simp)
+    # triangle edge k is opposite vertex k
+    ea = simp[:, [1, 2, 0]]
+    eb = simp[:, [2, 0, 1]]
+    lo, hi = np.minimum(ea, eb), np.maximum(ea, eb)
+    keys = lo.astype(np.int64) * n + hi
+    is_contact = np.isin(keys, contact_keys)
+
+    # glue triangles across non-contact edges; node n_tri is the outer face
+    t_idx = np.repeat(np.arange(n_tri)[:, None], 3, axis=1)
+    glue = ~is_contact
+    src = t_idx[glue]
+    dst = np.where(nbr[glue] >= 0, nbr[glue], n_tri)
+    graph = coo_matrix((np.ones(len(src)), (src, dst)), shape=(n_tri + 1, n_tri + 1))
+    _, comp = connected_components(graph, directed=False)
+    outer = comp[n_tri]
+    labels, tri_domain = np.unique(comp[:n_tri], return_inverse=True)
+    tri_domain = tri_domain.ravel()
+    is_outer_label = labels == outer
+    # renumber domains so that the outer face is OUTSIDE
+    remap = np.cumsum(~is_outer_label) - 1
+    remap[is_outer_label] = OUTSIDE
+    tri_domain = remap[tri_domain]
+    n_domains = int((~is_outer_label).sum())
+
+    area = _triangle_areas(centres, simp)
+    tri_centroid = centres[simp].mean(axis=1)
+    inside = tri_domain != OUTSIDE
+    volume = np.bincount(tri_domain[inside], weights=area[inside], minlength=n_domains)
+    centroid = np.stack(
+        [np.bincount(tri_domain[inside], weights=area[inside] * tri_centroid[inside, k], minlength=n_domains) for k in (0, 1)],
+        axis=1,
+    ) / volume[:, None]
+
+    # one pipe per contact edge of the triangulation; sides from the two adjacent triangles
+    side_a = tri_domain[t_idx]
+    side_b = np.where(nbr >= 0, tri_domain[np.maximum(nbr, 0)], OUTSIDE)
+    first = is_contact & ((nbr < 0) | (t_idx < nbr))  # visit each edge once
+    pipe_grains = np.stack([lo[first], hi[first]], axis=1)
+    pipe_domains = np.stack([side_a[first], side_b[first]], axis=1)
+    order = np.lexsort((pipe_grains[:, 1], pipe_grains[:, 0]))
+    pipe_grains, pipe_domains = pipe_grains[order], pipe_domains[order]
+    pipe_length = radii[pipe_grains[:, 0]] + radii[pipe_grains[:, 1]]
+
+    net = Network(
+        domain_centroid=centroid,
+        domain_volume=volume * 1.0,  # x 1 m out-of-plane depth
+        pipe_domains=pipe_domains.astype(int),
+        pipe_length=pipe_length,
+        pipe_aperture=np.zeros(len(pipe_length)),
+        pipe_grains=pipe_grains.astype(int),
+        points=centres,
+        triangles=simp,
+        triangle_domain=tri_domain,
+        triangle_neighbors=nbr,
+        n_vertices=len(np.unique(pipe_grains)),
+        extent=(centres[:, 0].min() - radii.max(), centres[:, 0].max() + radii.max(),
+                centres[:, 1].min() - radii.max(), centres[:, 1].max() + radii.max()),
+    )
+    net.n_contacts_dropped = len(contacts) - len(pipe_grains)  # contacts that are not Delaunay edges
+    return net
+
+
+def boundary_domains(net: Network) -> np.ndarray:
+    """Domains that share a triangulation edge with the outer face (they touch the sample edge)."""
+    nbr = net.triangle_neighbors
+    nbr_dom = np.where(nbr >= 0, net.triangle_domain[np.maximum(nbr, 0)], OUTSIDE)
+    own = np.repeat(net.triangle_domain[:, None], 3, axis=1)
+    return np.unique(own[(own != OUTSIDE) & (nbr_dom == OUTSIDE)])

@@ -1,0 +1,70 @@
+"""Figures of a run: the invasion pattern and the pressure (field and injection history)."""
+
+from __future__ import annotations
+
+import warnings
+
+import matplotlib
+
+matplotlib.use("Agg")
+warnings.filterwarnings("ignore", message="Unable to import Axes3D")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.collections import PatchCollection  # noqa: E402
+from matplotlib.patches import Circle  # noqa: E402
+from matplotlib.tri import Triangulation  # noqa: E402
+
+from .network.network import OUTSIDE, Network  # noqa: E402
+
+
+def _domain_triangulation(net: Network, values: np.ndarray):
+    inside = net.triangle_domain != OUTSIDE
+    tri = Triangulation(net.points[:, 0] * 1e3, net.points[:, 1] * 1e3, net.triangles[inside])
+    return tri, values[net.triangle_domain[inside]]
+
+
+def _grains(ax, net: Network, radii):
+    if radii is None:
+        return
+    circles = [Circle((x * 1e3, y * 1e3), r * 1e3) for (x, y), r in zip(net.points, radii)]
+    ax.add_collection(PatchCollection(circles, facecolor="none", edgecolor="0.6", linewidth=0.2))
+
+
+def plot_pattern(path, net: Network, saturation: np.ndarray, title: str, radii=None) -> None:
+    """Invaded domains drawn as polygons (union of their triangles), coloured by saturation."""
+    tri, s = _domain_triangulation(net, saturation)
+    fig, ax = plt.subplots(figsize=(6.4, 6))
+    pc = ax.tripcolor(tri, facecolors=s, cmap="Blues", vmin=0, vmax=1, edgecolors="none")
+    _grains(ax, net, radii)
+    for ids, colour, label in ((net.inlet_domains, "tab:green", "inflow"), (net.outlet_domains, "tab:red", "outflow")):
+        c = net.domain_centroid[ids] * 1e3
+        ax.plot(c[:, 0], c[:, 1], ".", color=colour, ms=3, label=label)
+    fig.colorbar(pc, ax=ax, label="invading saturation S")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("y [mm]")
+    ax.set_title(title, fontsize=9)
+    ax.legend(loc="upper right", fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def plot_pressure(path, net: Network, pressure: np.ndarray, times, p_in, title: str) -> None:
+    """Final pressure field and the mean injection pressure against time."""
+    tri, p = _domain_triangulation(net, pressure)
+    fig, (a0, a1) = plt.subplots(1, 2, figsize=(11, 4.6))
+    pc = a0.tripcolor(tri, facecolors=p / 1e3, cmap="viridis", edgecolors="none")
+    fig.colorbar(pc, ax=a0, label="p [kPa]")
+    a0.set_aspect("equal")
+    a0.set_xlabel("x [mm]")
+    a0.set_ylabel("y [mm]")
+    a0.set_title("final pressure", fontsize=9)
+    a1.plot(times, np.asarray(p_in) / 1e3, lw=1)
+    a1.set_xlabel("t [s]")
+    a1.set_ylabel("mean injection pressure [kPa]")
+    a1.set_title(title, fontsize=9)
+    a1.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)

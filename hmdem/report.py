@@ -1,0 +1,117 @@
+"""Write a complete run directory from a finished (or interrupted) flow run."""
+
+from __future__ import annotations
+
+import csv
+import json
+import platform
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+from .flow.diagnostics import classify_regime, fractal_dimension
+from .plots import plot_pattern, plot_pressure
+from .rundir import atomic_run_directory, json_safe, write_toml
+
+
+def pattern_fractal_dimension(sc, state) -> float:
+    """D_f of the invaded domains, box sizes from the grain scale to a quarter of the sample."""
+    net = sc.net
+    grain = float(np.median(net.pipe_length))  # r1 + r2: one grain diameter
+    size = max(net.extent[1] - net.extent[0], net.extent[3] - net.extent[2])
+    return fractal_dimension(net, state.saturation >= 0.5, grain, size / 4)[0]
+
+
+def summarize(sc, model, state, rec) -> dict:
+    net, fluids = sc.net, sc.setup.fluids
+    rows = rec.rows
+    p_in = np.array([r[2] for r in rows]) if rows else np.zeros(1)
+    volume = net.domain_volume
+    saturation = float(np.sum(state.saturation * volume) / np.sum(volume))
+    entry = np.abs(fluids.entry_pressure(net.pipe_aperture[model.pipes]))
+    two_phase = sc.setup.two_phase
+    d_f = pattern_fractal_dimension(sc, state) if two_phase and state.invaded.any() else float("nan")
+    regime = classify_regime(d_f, float(np.median(p_in)), float(np.median(entry))) if two_phase else "single phase"
+    return {
+        "case": sc.case.name,
+        "status": rec.status,
+        "regime": regime,
+        "fractal_dimension": d_f,
+        "breakthrough_time_s": rec.breakthrough_time,
+        "breakthrough_saturation": saturation if rec.status == "breakthrough" else float("nan"),
+        "final_saturation": saturation,
+        "peak_injection_pressure_pa": rec.peak_injection_pressure,
+        "final_injection_pressure_pa": float(p_in[-1]),
+        "median_injection_pressure_pa": float(np.median(p_in)),
+        "median_entry_pressure_pa": float(np.median(entry)),
+        "injection_energy_j": rec.injection_energy,
+        "dissipated_energy_j": rec.dissipated_energy,
+        "steps": rec.steps,
+        "eq18_steps": rec.eq18_steps,
+        "eq19_steps": rec.eq19_steps,
+        "linear_solves": rec.solves,
+        "max_mass_balance_error": rec.max_mass_balance_error,
+        "simulated_time_s": state.t,
+        "wall_time_s": rec.wall_time,
+        "ca_star": sc.ca_star,
+        "rate_m3_per_s_per_m": sc.setup.rate,
+        "viscosity_ratio": fluids.viscosity_ratio,
+        "n_domains": net.n_domains,
+        "n_pipes": net.n_pipes,
+        "n_inlet_domains": len(net.inlet_domains),
+        "n_outlet_domains": len(net.outlet_domains),
+        "n_invaded_domains": int(state.invaded.sum()),
+    }
+
+
+def write_run(out: Path, sc, model, state, rec, seed: int, argv) -> dict:
+    """Write every file of the run directory into a temporary folder, then rename it to ``out``."""
+    summary = summarize(sc, model, state, rec)
+    net = sc.net
+    setup = {k: v for k, v in asdict(sc.setup).items() if k != "fluids"}
+    config = {
+        "run": {"command": "python -m hmdem.hele_shaw " + " ".join(argv), "hmdem_version": __version__,
+                "python": platform.python_version(), "case": sc.case.name, "seed": seed},
+        "case": {"title": sc.case.title, "geometry": sc.case.geometry, "ca_star": sc.ca_star,
+                 "mean_aperture_m": sc.case.mean_aperture, "aperture_spread": sc.case.aperture_spread,
+                 "contact_gap": sc.case.contact_gap, "sigma_m": sc.sigma, "length_m": sc.length},
+        "fluids": asdict(sc.setup.fluids),
+        "solver": setup,
+    }
+    with atomic_run_directory(out) as tmp:
+        write_toml(tmp / "config.toml", config)
+        (tmp / "summary.json").write_text(json.dumps(json_safe(summary), indent=2) + "\n")
+        with open(tmp / "timeseries.csv", "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(rec.columns)
+            w.writerows(rec.rows)
+        arrays = net.arrays()
+        arrays["pipe_entry_pressure"] = sc.setup.fluids.entry_pressure(net.pipe_aperture)
+        np.savez_compressed(tmp / "network.npz", **arrays)
+        np.savez_compressed(tmp / "state.npz", pressure=state.pressure, saturation=state.saturation,
+                            invasion_time=state.invasion_time, t=state.t)
+        title = f"{sc.case.title}\nCa* = {sc.ca_star:.3g}, M = {sc.setup.fluids.viscosity_ratio:.3g}, t = {state.t:.4g} s, " \
+                f"{summary['regime']}, D_f = {summary['fractal_dimension']:.3f}"
+        plot_pattern(tmp / "pattern.png", net, state.saturation, title, sc.packing_radii)
+        plot_pressure(tmp / "pressure.png", net, state.pressure, [r[0] for r in rec.rows], [r[2] for r in rec.rows],
+                      f"{sc.case.name}: mean injection pressure")
+        write_vtu(tmp / "domains.vtu", net, state)
+    return summary
+
+
+def write_vtu(path: Path, net, state) -> None:
+    """Domain polygons (as their triangles) with pressure, saturation and invasion time for ParaView."""
+    import meshio
+
+    from .network.network import OUTSIDE
+
+    inside = net.triangle_domain != OUTSIDE
+    dom = net.triangle_domain[inside]
+    points = np.c_[net.points, np.zeros(len(net.points))]
+    t_inv = np.where(np.isfinite(state.invasion_time), state.invasion_time, -1.0)
+    mesh = meshio.Mesh(points, [("triangle", net.triangles[inside])],
+                       cell_data={"pressure": [state.pressure[dom]], "saturation": [state.saturation[dom]],
+                                  "invasion_time": [t_inv[dom]], "domain": [dom]})
+    mesh.write(path)

@@ -1,0 +1,65 @@
+"""Run directories: written under a temporary name and renamed when complete.
+
+Contents (issue 2 contract): config.toml, summary.json, timeseries.csv, network.npz, state.npz,
+pattern.png, pressure.png and domains.vtu (ParaView). A crash never leaves a half-written
+directory under the final name; a Ctrl-C'd run is still written, with status "interrupted".
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+
+
+def toml_value(v) -> str:
+    if hasattr(v, "item") and not isinstance(v, (list, tuple)):  # numpy scalars
+        v = v.item()
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        if isinstance(v, float) and not math.isfinite(v):
+            return "inf" if v > 0 else ("-inf" if v < 0 else "nan")
+        return repr(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    return json.dumps(str(v))
+
+
+def write_toml(path: Path, sections: dict[str, dict]) -> None:
+    """Minimal TOML writer for flat sections of scalars (tomllib reads it back)."""
+    lines = []
+    for name, table in sections.items():
+        lines.append(f"[{name}]")
+        lines += [f"{k} = {toml_value(v)}" for k, v in table.items()]
+        lines.append("")
+    path.write_text("\n".join(lines))
+
+
+def json_safe(obj):
+    """Replace non-finite floats by null so summary.json is strict JSON."""
+    if isinstance(obj, dict):
+        return {k: json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+@contextmanager
+def atomic_run_directory(final: Path):
+    """Yield a temporary sibling directory; rename it to ``final`` when the block completes."""
+    final = Path(final)
+    final.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.partial-", dir=final.parent))
+    try:
+        yield tmp
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    os.replace(tmp, final)

@@ -1,0 +1,66 @@
+"""Turn a :class:`~hmdem.cases.Case` into a network with apertures, boundaries and a flow setup."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .cases import Case, default_packing_path, rate_from_ca_star
+from .flow.simulation import FlowSetup
+from .network import (Network, build_contact_network, find_contacts, central_injection_boundaries, linear_flow_boundaries,
+                      square_lattice_network, uniform_apertures)
+
+
+@dataclass
+class Scenario:
+    case: Case
+    net: Network
+    setup: FlowSetup
+    sigma: float  # injection "area" per m of depth in Ca* (m)
+    length: float  # sample length in Ca* (m)
+    ca_star: float
+    packing_radii: np.ndarray | None = None  # grain radii for drawing (disc packings only)
+
+
+def load_packing(path=None):
+    from .dem.packing import DiscPacking  # plain numpy container; importing it does not import YADE
+
+    return DiscPacking.load(path or default_packing_path())
+
+
+def build_network(case: Case, seed: int, packing_path=None) -> tuple[Network, float, float, np.ndarray]:
+    """Network with apertures and boundary domains; returns (net, Sigma, L) for Ca* and the grain radii."""
+    rng = np.random.default_rng(seed)
+    if case.geometry == "lattice":
+        net = square_lattice_network(40, 0.5e-3)
+        net.inlet_domains, net.outlet_domains = central_injection_boundaries(net)
+        inlet_perimeter = 4 * 0.5e-3
+        length = net.points[:, 0].max() - net.points[:, 0].min()
+        sigma = inlet_perimeter
+        radii = np.full(len(net.points), 0.25e-3)
+    else:
+        pk = load_packing(packing_path)
+        near = find_contacts(pk.centres, pk.radii, tolerance=case.contact_gap)
+        contacts = np.unique(np.concatenate([pk.contacts, near]), axis=0)
+        net = build_contact_network(pk.centres, pk.radii, contacts)
+        net.inlet_domains, net.outlet_domains = linear_flow_boundaries(net, band=2.5 * pk.radii.mean())
+        sigma, length = pk.box[1], pk.box[0]
+        radii = pk.radii
+    net.check_euler()
+    net.pipe_aperture = uniform_apertures(net.n_pipes, case.mean_aperture, case.aperture_spread, rng)
+    return net, sigma, length, radii
+
+
+def build_scenario(case: Case, seed: int = 0, inlet: str = "manifold", scheme: str = "implicit",
+                   packing_path=None) -> Scenario:
+    net, sigma, length, radii = build_network(case, seed, packing_path)
+    if case.rate is not None:
+        rate = case.rate
+        ca = (rate * case.fluids.viscosity_inv * length
+              / (sigma * case.fluids.surface_tension * abs(case.fluids.cos_theta) * case.mean_aperture))
+    else:
+        ca = case.ca_star
+        rate = rate_from_ca_star(ca, case.fluids, sigma, length, case.mean_aperture)
+    setup = FlowSetup(case.fluids, rate, case.dt, inlet=inlet, scheme=scheme, two_phase=case.two_phase, t_max=case.t_max)
+    return Scenario(case, net, setup, sigma, length, ca, radii)

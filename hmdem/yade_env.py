@@ -1,0 +1,71 @@
+"""Find and import YADE as a Python module.
+
+Debian 12's ``python3-yade`` installs its modules in ``/usr/lib/x86_64-linux-gnu/yade-double/py``
+but the ``/usr/lib/python3/dist-packages/yade`` symlink points to a folder that does not exist.
+:func:`import_yade` puts the real folder on ``sys.path`` (``HMDEM_YADE_PATH`` overrides the search)
+and imports ``yade``. Nothing outside :mod:`hmdem.dem` should call it.
+"""
+
+from __future__ import annotations
+
+import glob
+import importlib
+import os
+import sys
+
+KNOWN_PREFIXES = (
+    "/usr/lib/x86_64-linux-gnu/yade-double/py",
+    "/usr/lib/aarch64-linux-gnu/yade-double/py",
+    "/usr/lib/x86_64-linux-gnu/yade/py",
+    "/usr/local/lib/yade/py",
+)
+
+FIX_HINT = (
+    "YADE is not importable. Install it with `make setup` (Debian: apt-get install yade python3-yade), "
+    "run hmdem from the venv made from /usr/bin/python3 with --system-site-packages, "
+    "or set HMDEM_YADE_PATH to the folder that holds the 'yade' package."
+)
+
+
+class YadeNotFound(ImportError):
+    """Raised when no YADE installation can be imported."""
+
+
+def candidate_paths() -> list[str]:
+    """Folders that may contain the ``yade`` package, most specific first."""
+    paths = []
+    override = os.environ.get("HMDEM_YADE_PATH")
+    if override:
+        paths.append(override)
+    paths.extend(KNOWN_PREFIXES)
+    paths.extend(sorted(glob.glob("/usr/lib/*/yade*/py")))
+    return [p for p in dict.fromkeys(paths) if os.path.isdir(os.path.join(p, "yade"))]
+
+
+def import_yade():
+    """Import and return the ``yade`` module, fixing ``sys.path`` for Debian's layout.
+
+    Raises :class:`YadeNotFound` with the fix when YADE is absent.
+    """
+    if "yade" in sys.modules and hasattr(sys.modules["yade"], "O"):
+        return sys.modules["yade"]
+    for path in candidate_paths():
+        if path not in sys.path:
+            sys.path.insert(0, path)
+        sys.modules.pop("yade", None)  # a failed attempt may have left Debian's broken namespace
+        try:
+            yade = importlib.import_module("yade")
+        except ImportError:
+            continue
+        if hasattr(yade, "O"):
+            return yade
+    raise YadeNotFound(FIX_HINT)
+
+
+def yade_available() -> bool:
+    """True when :func:`import_yade` would succeed (imports YADE as a side effect)."""
+    try:
+        import_yade()
+    except YadeNotFound:
+        return False
+    return True

@@ -1,0 +1,109 @@
+"""Command line and run-directory contract of ``python -m hmdem.hele_shaw`` (issue 2)."""
+
+import json
+import subprocess
+import sys
+import tomllib
+
+import numpy as np
+import pytest
+
+from hmdem.hele_shaw import main
+
+CMD = [sys.executable, "-m", "hmdem.hele_shaw"]
+
+
+@pytest.mark.parametrize("args,name", [
+    (["linear", "--viscosity-ratio", "-1"], "--viscosity-ratio"),
+    (["linear", "--viscosity-ratio", "0"], "--viscosity-ratio"),
+    (["linear", "--rate", "nan"], "--rate"),
+    (["linear", "--mean-aperture", "-0.1"], "--mean-aperture"),
+    (["linear", "--ca-star", "inf"], "--ca-star"),
+    (["linear", "--dt", "0"], "--dt"),
+    (["linear", "--case", "nope"], "--case"),
+    (["linear", "--seed", "-3"], "--seed"),
+])
+def test_bad_input_one_line_exit_2_nothing_written(tmp_path, args, name):
+    out = tmp_path / "run"
+    proc = subprocess.run(CMD + args + ["--out", str(out)], capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and name in lines[0]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_existing_out_is_refused(tmp_path, capsys):
+    (tmp_path / "run").mkdir()
+    assert main(["linear", "--out", str(tmp_path / "run")]) == 2
+    assert "--out" in capsys.readouterr().err
+
+
+def test_run_directory_contract(tmp_path):
+    out = tmp_path / "chen"
+    assert main(["linear", "--case", "chen", "--out", str(out), "--quiet"]) == 0
+    names = {p.name for p in out.iterdir()}
+    assert {"config.toml", "summary.json", "timeseries.csv", "network.npz", "state.npz", "pattern.png",
+            "pressure.png", "domains.vtu"} <= names
+    summary = json.loads((out / "summary.json").read_text())
+    for key in ("case", "regime", "fractal_dimension", "breakthrough_time_s", "breakthrough_saturation",
+                "peak_injection_pressure_pa", "final_injection_pressure_pa", "injection_energy_j", "steps",
+                "wall_time_s"):
+        assert key in summary
+    assert summary["case"] == "chen" and summary["status"] == "breakthrough"
+    config = tomllib.loads((out / "config.toml").read_text())
+    assert config["run"]["seed"] == 0 and config["solver"]["dt"] == 0.01 and config["solver"]["inlet"] == "manifold"
+    net = np.load(out / "network.npz")
+    for key in ("domain_centroid", "domain_volume", "pipe_domains", "pipe_aperture", "pipe_length",
+                "pipe_entry_pressure", "inlet_domains", "outlet_domains"):
+        assert key in net.files
+    assert net["domain_centroid"].shape == (1521, 2) and net["pipe_domains"].shape == (3120, 2)
+    state = np.load(out / "state.npz")
+    assert state["pressure"].shape == state["saturation"].shape == state["invasion_time"].shape == (1521,)
+    invaded = state["saturation"] >= 1
+    assert np.all(np.isfinite(state["invasion_time"][invaded])) and np.all(np.isinf(state["invasion_time"][~invaded]))
+    header = (out / "timeseries.csv").read_text().splitlines()[0].split(",")
+    assert header[:7] == ["t", "dt", "p_in_mean", "q_in", "q_out", "saturation", "energy"]
+    import meshio
+
+    mesh = meshio.read(out / "domains.vtu")
+    assert {"pressure", "saturation"} <= set(mesh.cell_data)
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no partial directory left
+
+
+def test_interrupted_run_leaves_valid_directory(tmp_path, monkeypatch):
+    # Ctrl-C mid-run: the run directory is still complete, with status "interrupted"
+    from hmdem.flow import simulation
+
+    calls = {"n": 0}
+    original = simulation.FlowModel._accept
+
+    def accept_then_interrupt(self, *a, **k):
+        original(self, *a, **k)
+        calls["n"] += 1
+        if calls["n"] == 20:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(simulation.FlowModel, "_accept", accept_then_interrupt)
+    out = tmp_path / "cut"
+    assert main(["linear", "--case", "vf", "--out", str(out), "--quiet"]) == 130
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and summary["steps"] == 20
+    assert (out / "pattern.png").stat().st_size > 0
+
+
+def test_explicit_scheme_runs_and_agrees_early(tmp_path):
+    # seed004 App. C: the explicit reference scheme; over a short window both schemes give the
+    # same injection pressure rise (the implicit one with a step 1e3 x larger).
+    from hmdem.cases import CASES
+    from hmdem.flow.simulation import FlowModel
+    from hmdem.scenario import build_scenario
+
+    results = {}
+    for scheme, dt in (("explicit", 1.0), ("implicit", 2e-7)):
+        sc = build_scenario(CASES["vf"], scheme=scheme)
+        sc.setup.dt, sc.setup.t_max = dt, 2e-6
+        state, rec = FlowModel(sc.net, sc.setup).run()
+        results[scheme] = (rec.rows[-1][2], rec.steps)
+    (p_ex, n_ex), (p_im, n_im) = results["explicit"], results["implicit"]
+    assert n_ex >= 5 * n_im
+    assert p_im == pytest.approx(p_ex, rel=0.05)
