@@ -88,6 +88,32 @@ def make_case(args):
     return replace(case, **changes)
 
 
+class FrontProgress:
+    """tqdm bar of the front's progress (two-phase) or of simulated time (single phase)."""
+
+    def __init__(self, name, setup, every_s: float = 0.2):
+        from tqdm import tqdm
+
+        self.setup, self.every_s, self.last = setup, every_s, 0.0
+        self.bar = tqdm(total=100, unit="%", desc=f"{name} front", file=sys.stderr,
+                        bar_format="{desc}: {percentage:3.0f}%|{bar}| {postfix}")
+
+    def __call__(self, model, state):
+        now = time.perf_counter()
+        if now - self.last < self.every_s:
+            return
+        self.last = now
+        frac = model.progress(state) if self.setup.two_phase else state.t / self.setup.t_max
+        self.bar.n = round(100 * frac, 1)
+        self.bar.set_postfix_str(f"t={state.t:.4g} s, steps={model.record.steps}, invaded={int(state.invaded.sum())}")
+
+    def close(self, finished: bool):
+        if finished:
+            self.bar.n = 100
+        self.bar.refresh()
+        self.bar.close()
+
+
 def run_linear(args) -> int:
     from .report import write_run
     from .scenario import build_scenario
@@ -103,25 +129,10 @@ def run_linear(args) -> int:
     if args.max_steps is not None:
         sc.setup.max_steps = int(args.max_steps)
     model = FlowModel(sc.net, sc.setup)
-    bar = None
-    callback = None
-    if not args.quiet:
-        from tqdm import tqdm
-
-        bar = tqdm(total=100, unit="%", desc=f"{case.name} front", file=sys.stderr,
-                   bar_format="{desc}: {percentage:3.0f}%|{bar}| {postfix}")
-
-        def callback(m, st, _last=[0.0]):
-            frac = st.t / sc.setup.t_max if not sc.setup.two_phase else m.progress(st)
-            now = time.perf_counter()
-            if now - _last[0] > 0.2:
-                _last[0] = now
-                bar.n = round(100 * frac, 1)
-                bar.set_postfix_str(f"t={st.t:.4g} s, steps={m.record.steps}, invaded={int(st.invaded.sum())}")
-    state, rec = model.run(progress=callback)
+    bar = None if args.quiet else FrontProgress(case.name, sc.setup)
+    state, rec = model.run(progress=bar)
     if bar is not None:
-        bar.n = round(100 * (1.0 if rec.status == "breakthrough" else bar.n / 100), 1)
-        bar.close()
+        bar.close(rec.status == "breakthrough")
     summary = write_run(out, sc, model, state, rec, seed=args.seed, argv=sys.argv[1:])
     print(f"{case.name}: {rec.status} at t = {state.t:.4g} s after {rec.steps} steps; regime: {summary['regime']}, "
           f"D_f = {summary['fractal_dimension']:.3f}, peak injection pressure {summary['peak_injection_pressure_pa']:.4g} Pa")

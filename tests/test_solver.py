@@ -65,7 +65,6 @@ def test_u9_eq19_opens_blocked_pipe():
         state = model.initial_state()
         state.invaded[0] = True
         state.saturation[0] = 1.0
-        model.record = type("R", (), {"solves": 0})()
         g, orient, pc = model.pipe_properties(state)
         m0 = model._margins(state.pressure, orient, pc)[orient != 0]
         assert np.all(m0 < 0)
@@ -83,9 +82,6 @@ def test_u10_overfill_refinement_fills_exactly_one_domain():
     sc = build_scenario(CASES["vf"])
     model = FlowModel(sc.net, sc.setup)
     state = model.initial_state()
-    from hmdem.flow.simulation import RunRecord
-
-    model.record = RunRecord()
     refined = 0
     for _ in range(40):
         sol, fill, dt, limiter = model.implicit_step(state, np.zeros(len(model.pipes), bool))

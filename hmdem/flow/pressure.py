@@ -70,9 +70,21 @@ class PressureSystem:
 
     def pipe_source_to_nodes(self, s: np.ndarray) -> np.ndarray:
         """Row contributions of a pipe source s (flux a -> b held fixed): row a gets -s, row b +s."""
+        n = self.n_unknowns
+        return np.bincount(self.nb[self.vb], s[self.vb], n) - np.bincount(self.na[self.va], s[self.va], n)
+
+    def node_values(self, per_domain: np.ndarray) -> np.ndarray:
+        """Pressure of each unknown from a per-domain field (domains sharing a node agree)."""
         out = np.zeros(self.n_unknowns)
-        np.subtract.at(out, self.na[self.va], s[self.va])
-        np.add.at(out, self.nb[self.vb], s[self.vb])
+        m = self.domain_is_unknown
+        out[self.node[m]] = per_domain[m]
+        return out
+
+    def domain_values(self, per_node: np.ndarray) -> np.ndarray:
+        """Per-domain field from the unknowns; Dirichlet domains get 0 (gauge outflow pressure)."""
+        out = np.zeros(len(self.node))
+        m = self.domain_is_unknown
+        out[m] = per_node[self.node[m]]
         return out
 
     def solve(
@@ -104,9 +116,7 @@ class PressureSystem:
             cap_flux = orient * g_open * entry_pressure  # capillary part of the a -> b flux
             A = self.matrix(storage_node, g_open)
             B = rhs_node + self.pipe_source_to_nodes(cap_flux)
-            p_node = solve_spd(A, B)
-            p = np.zeros(len(self.node))
-            p[self.domain_is_unknown] = p_node[self.node[self.domain_is_unknown]]
+            p = self.domain_values(solve_spd(A, B))
             dp = p[self.pipe_a] - p[self.pipe_b]
             margin = np.where(front, orient * dp + entry_pressure, 0.0)
             if hold_blocked:

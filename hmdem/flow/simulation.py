@@ -35,7 +35,6 @@ class FlowSetup:
     two_phase: bool = True  # False: single-phase run (Darcy test), no front
     t_max: float = np.inf  # stop time (single-phase runs stop here; two-phase runs at breakthrough)
     max_steps: int = 2_000_000
-    record_every: int = 1
 
 
 @dataclass
@@ -102,6 +101,7 @@ class FlowModel:
         d_out = cKDTree(net.domain_centroid[self.outlet]).query(net.domain_centroid)[0]
         self.dist_to_outlet = d_out
         self.start_distance = max(d_out[self.inlet].max(), 1e-300)
+        self.record = RunRecord()
 
     # ---- state -----------------------------------------------------------------------------
     def initial_state(self) -> FlowState:
@@ -143,22 +143,19 @@ class FlowModel:
         fill = self._fill_rates(state, sol, storage, orient)
         return sol, fill
 
-    def _inlet_inflow(self, state, pressure, div, storage):
-        """Rate entering each inflow domain from the inlet: its storage change plus net outflow."""
-        q = np.zeros(self.net.n_domains)
-        i = self.inlet
-        q[i] = storage[i] * (pressure[i] - state.pressure[i]) + div[i]
-        return q
+    def _invading_inflow(self, state, orient, pipe_flux, inlet_rate):
+        """Invading-fluid inflow per domain: open front pipes plus the inlet into unfilled inflow domains."""
+        fill = fr.front_fill_rates(orient, pipe_flux, self.pipe_a, self.pipe_b, self.net.n_domains)
+        filling = self.inlet[~state.invaded[self.inlet]]
+        fill[filling] += np.maximum(inlet_rate[filling], 0.0)
+        return fill
 
     def _fill_rates(self, state, sol, storage, orient):
         if not self.setup.two_phase:
             return np.zeros(self.net.n_domains)
-        fill = fr.front_fill_rates(orient, sol.pipe_flux, self.pipe_a, self.pipe_b, self.net.n_domains)
-        div = self.system.divergence(sol.pipe_flux)
-        q_in = self._inlet_inflow(state, sol.pressure, div, storage)
-        filling_inlet = self.inlet[~state.invaded[self.inlet]]
-        fill[filling_inlet] += np.maximum(q_in[filling_inlet], 0.0)
-        return fill
+        # rate from the inlet into each inflow domain: its storage change plus its net pipe outflow
+        inlet_rate = storage * (sol.pressure - state.pressure) + self.system.divergence(sol.pipe_flux)
+        return self._invading_inflow(state, orient, sol.pipe_flux, inlet_rate)
 
     def _margins(self, pressure, orient, pc):
         """p_u - p_d + p_c on front pipes (0 elsewhere); > 0 means the pipe would open."""
@@ -232,18 +229,12 @@ class FlowModel:
         limiter = "stability" if dt == dt_stable else "nominal"
         fill = np.zeros(self.net.n_domains)
         if self.setup.two_phase:
-            fill = fr.front_fill_rates(orient, flux, self.pipe_a, self.pipe_b, self.net.n_domains)
-            filling_inlet = self.inlet[~state.invaded[self.inlet]]
-            fill[filling_inlet] += self.source[filling_inlet]
+            fill = self._invading_inflow(state, orient, flux, self.source)
             t_fill = float(fr.fill_times(self.volume, state.saturation, fill).min())
             if t_fill < dt:
                 dt, limiter = t_fill, "eq18"
-        known = self.system.domain_is_unknown
-        p_node = np.zeros(self.system.n_unknowns)
-        p_node[self.system.node[known]] = p[known]
-        p_node += dt * self.system.to_nodes(self.source - div) / storage_node
-        p_new = np.zeros_like(p)
-        p_new[known] = p_node[self.system.node[known]]
+        p_node = self.system.node_values(p) + dt * self.system.to_nodes(self.source - div) / storage_node
+        p_new = self.system.domain_values(p_node)
         return PressureSolution(p_new, flux, blocked, margin, 0), fill, dt, limiter
 
     def _sum_conductance(self, g):
@@ -308,7 +299,6 @@ class FlowModel:
         rec.steps += 1
         rec.eq18_steps += limiter == "eq18"
         rec.eq19_steps += limiter == "eq19"
-        if rec.steps % self.setup.record_every == 0 or not np.isfinite(rec.breakthrough_time):
-            sat = float(np.sum(state.saturation * self.volume) / np.sum(self.volume))
-            rec.rows.append((state.t, dt, p_in, self.setup.rate, q_out, sat, rec.injection_energy,
-                             rec.dissipated_energy, int(state.invaded.sum()), limiter))
+        sat = float(np.sum(state.saturation * self.volume) / np.sum(self.volume))
+        rec.rows.append((state.t, dt, p_in, self.setup.rate, q_out, sat, rec.injection_energy,
+                         rec.dissipated_energy, int(state.invaded.sum()), limiter))

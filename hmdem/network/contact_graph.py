@@ -104,7 +104,7 @@ def build_contact_network(centres: np.ndarray, radii: np.ndarray, contacts: np.n
     pipe_grains, pipe_domains = pipe_grains[order], pipe_domains[order]
     pipe_length = radii[pipe_grains[:, 0]] + radii[pipe_grains[:, 1]]
 
-    net = Network(
+    return Network(
         domain_centroid=centroid,
         domain_volume=volume * 1.0,  # x 1 m out-of-plane depth
         pipe_domains=pipe_domains.astype(int),
@@ -119,8 +119,6 @@ def build_contact_network(centres: np.ndarray, radii: np.ndarray, contacts: np.n
         extent=(centres[:, 0].min() - radii.max(), centres[:, 0].max() + radii.max(),
                 centres[:, 1].min() - radii.max(), centres[:, 1].max() + radii.max()),
     )
-    net.n_contacts_dropped = len(contacts) - len(pipe_grains)  # contacts that are not Delaunay edges
-    return net
 
 
 def boundary_domains(net: Network) -> np.ndarray:
