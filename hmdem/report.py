@@ -33,7 +33,7 @@ def summarize(sc, model, state, rec) -> dict:
     entry = np.abs(fluids.entry_pressure(net.pipe_aperture[model.pipes]))
     two_phase = sc.setup.two_phase
     d_f = pattern_fractal_dimension(sc, state) if two_phase and state.invaded.any() else float("nan")
-    regime = classify_regime(d_f, float(np.median(p_in)), float(np.median(entry))) if two_phase else "single phase"
+    regime = classify_regime(d_f, float(np.median(p_in)), float(np.std(entry))) if two_phase else "single phase"
     return {
         "case": sc.case.name,
         "status": rec.status,
@@ -46,6 +46,7 @@ def summarize(sc, model, state, rec) -> dict:
         "final_injection_pressure_pa": float(p_in[-1]),
         "median_injection_pressure_pa": float(np.median(p_in)),
         "median_entry_pressure_pa": float(np.median(entry)),
+        "entry_pressure_spread_pa": float(np.std(entry)),
         "injection_energy_j": rec.injection_energy,
         "dissipated_energy_j": rec.dissipated_energy,
         "steps": rec.steps,

@@ -65,6 +65,7 @@ def count_fingers(sc, state, core_radius):
 def test_l15_chen_wilkinson_four_fingers():
     sc, model, state, rec = run_case("chen")
     assert rec.status == "breakthrough"
+    assert summarize(sc, model, state, rec)["regime"] == "viscous fingering"  # uniform thresholds: viscous selection
     n, angles = count_fingers(sc, state, core_radius=3 * 0.5e-3)
     assert n == 4  # L15: exactly four fingers
     along_axis = np.min(np.abs(((angles[:, None] - np.array([0, 90, 180, -90, -180])[None, :]) + 180) % 360 - 180), axis=1)

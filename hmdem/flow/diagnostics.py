@@ -65,19 +65,20 @@ def fractal_dimension(net: Network, domain_mask: np.ndarray, smallest: float, la
 VISCOUS_TO_CAPILLARY_THRESHOLD = 10.0
 
 
-def classify_regime(fractal_dim: float, injection_pressure_median: float, entry_pressure_median: float) -> str:
+def classify_regime(fractal_dim: float, injection_pressure_median: float, entry_pressure_spread: float) -> str:
     """Lenormand regime from the run itself, never from its inputs (docs/decisions.md).
 
-    A compact pattern (D_f >= 1.90, digest L3) is stable displacement. Otherwise the ratio of
-    the time-median injection pressure to the median capillary entry pressure |p_c| tells the
-    fingering type: capillary fingering when the driving pressure stays within a few entry
-    pressures (the front advances pipe by pipe through thresholds, digest L6/L16), viscous
-    fingering when the viscous pressure drop dwarfs them (>= 10 |p_c|; VF has ~100-400).
+    A compact pattern (D_f >= 1.90, digest L3) is stable displacement. Otherwise what selects
+    the next invaded pipe decides: the disorder of the capillary thresholds (capillary
+    fingering) when the driving pressure stays within a few times the spread (standard
+    deviation) of the entry pressures |p_c|, the viscous pressure field (viscous fingering)
+    when it exceeds 10x that spread. Uniform thresholds (a regular lattice) have no spread, so
+    the viscous field always selects.
     """
     if not np.isfinite(fractal_dim):
         return "undetermined"
     if fractal_dim >= 1.90:
         return "stable displacement"
-    if injection_pressure_median < VISCOUS_TO_CAPILLARY_THRESHOLD * abs(entry_pressure_median):
+    if injection_pressure_median < VISCOUS_TO_CAPILLARY_THRESHOLD * entry_pressure_spread:
         return "capillary fingering"
     return "viscous fingering"
