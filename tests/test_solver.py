@@ -44,15 +44,19 @@ def test_u7_m_matrix_and_no_oscillation():
     assert p[model.inlet].mean() == pytest.approx(p.max(), rel=1e-9)
 
 
-def test_u8_mass_balance_per_step():
-    # seed004 U8: sum_i (V_i/K_i)(p^{n+1} - p^n) = (Q_in - Q_out) dt per step, 1e-10 relative
-    # (glucose-oil, conductance contrast 1e2; see BENCHMARKS/notes for the air-oil contrast)
-    sc = build_scenario(CASES["sd"])
-    sc.setup.max_steps = 200
+@pytest.mark.parametrize("case,max_steps", [("sd", 200), ("cf2", 2_000_000)])
+def test_u8_mass_balance_per_step(case, max_steps):
+    # seed004 U8: sum_i (V_i/K_i)(p^{n+1} - p^n) = (Q_in - Q_out) dt per step, 1e-10 relative.
+    # Glucose-oil: sd (viscous, Eq. 18 steps) and the whole cf2 run (Eq. 19 steps included).
+    # The air-oil cases do not reach it yet (round-off at ~1e-8 in burst steps; see BENCHMARKS.md).
+    sc = build_scenario(CASES[case])
+    sc.setup.max_steps = max_steps
     model = FlowModel(sc.net, sc.setup)
     _, rec = model.run()
-    assert rec.steps == 200
+    assert rec.steps == max_steps or rec.status == "breakthrough"
     assert rec.max_mass_balance_error < 1e-10
+    if case == "cf2":
+        assert rec.eq19_steps > 0  # the blocked-front criterion was exercised
 
 
 def test_u9_eq19_opens_blocked_pipe():
