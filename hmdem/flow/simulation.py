@@ -169,13 +169,14 @@ class FlowModel:
         front = orient != 0
         if self.setup.two_phase and front.any():
             m0 = self._margins(state.pressure, orient, pc)
-            if np.all(m0[front] <= 0.0):
-                # Capillarity blocks the whole front at p^n: the injected fluid accumulates by
-                # compression (or slowly pushes defending fluid out of unfilled inflow domains,
-                # which the held solve includes). Eq. 19 picks the step that opens the weakest
-                # blocked pipe; if none opens within dt, dt stands.
-                held, _ = self._trial(state, dt, g, orient, pc, front, hold=True)
-                dt19 = fr.blocked_front_step(dt, m0[front], held.margin[front], self.setup.chi)
+            shut = front & (m0 <= 0.0)
+            if shut.any():
+                # Eq. 19, generalised: with the pipes shut at p^n held shut, find the step at
+                # which the first of them opens, so that pipe openings, like domain fillings
+                # (Eq. 18), happen one event per step and the pattern does not depend on the
+                # nominal dt. When the whole front is shut this is the paper's Eq. 19 case.
+                held, _ = self._trial(state, dt, g, orient, pc, shut, hold=True)
+                dt19 = fr.blocked_front_step(dt, m0[shut], held.margin[shut], self.setup.chi)
                 if dt19 < dt:
                     dt, limiter = dt19, "eq19"
         sol, fill = self._trial(state, dt, g, orient, pc, blocked_guess)
