@@ -6,10 +6,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .cases import Case, default_packing_path, rate_from_ca_star
+from .cases import Case, ca_star_from_rate, default_packing_path, rate_from_ca_star
 from .flow.simulation import FlowSetup
+from .network.packing import DiscPacking
 from .network import (Network, build_contact_network, find_contacts, central_injection_boundaries, linear_flow_boundaries,
                       square_lattice_network, uniform_apertures)
+
+
+CHEN_DISCS_PER_SIDE = 40  # App. D.2: 39 x 39 square domains
+CHEN_SPACING = 0.5e-3  # channel length; disc radius = aperture = 0.25 mm
 
 
 @dataclass
@@ -23,9 +28,7 @@ class Scenario:
     packing_radii: np.ndarray | None = None  # grain radii for drawing (disc packings only)
 
 
-def load_packing(path=None):
-    from .dem.packing import DiscPacking  # plain numpy container; importing it does not import YADE
-
+def load_packing(path=None) -> DiscPacking:
     return DiscPacking.load(path or default_packing_path())
 
 
@@ -33,12 +36,11 @@ def build_network(case: Case, seed: int, packing_path=None) -> tuple[Network, fl
     """Network with apertures and boundary domains; returns (net, Sigma, L) for Ca* and the grain radii."""
     rng = np.random.default_rng(seed)
     if case.geometry == "lattice":
-        net = square_lattice_network(40, 0.5e-3)
+        net = square_lattice_network(CHEN_DISCS_PER_SIDE, CHEN_SPACING)
         net.inlet_domains, net.outlet_domains = central_injection_boundaries(net)
-        inlet_perimeter = 4 * 0.5e-3
+        sigma = 4 * CHEN_SPACING  # perimeter of the square inflow domain
         length = net.points[:, 0].max() - net.points[:, 0].min()
-        sigma = inlet_perimeter
-        radii = np.full(len(net.points), 0.25e-3)
+        radii = np.full(len(net.points), CHEN_SPACING / 2)
     else:
         pk = load_packing(packing_path)
         near = find_contacts(pk.centres, pk.radii, tolerance=case.contact_gap)
@@ -57,8 +59,7 @@ def build_scenario(case: Case, seed: int = 0, inlet: str = "manifold", scheme: s
     net, sigma, length, radii = build_network(case, seed, packing_path)
     if case.rate is not None:
         rate = case.rate
-        ca = (rate * case.fluids.viscosity_inv * length
-              / (sigma * case.fluids.surface_tension * abs(case.fluids.cos_theta) * case.mean_aperture))
+        ca = ca_star_from_rate(rate, case.fluids, sigma, length, case.mean_aperture)
     else:
         ca = case.ca_star
         rate = rate_from_ca_star(ca, case.fluids, sigma, length, case.mean_aperture)

@@ -10,36 +10,11 @@ from __future__ import annotations
 
 import os
 import time
-from dataclasses import dataclass
-
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..network.packing import DiscPacking
 from .discs import add_disc, disc_contacts, disc_material, disc_state
-
-
-@dataclass
-class DiscPacking:
-    """A 2D packing: centres (n, 2) m, radii (n,) m, contacts (k, 2), box (W, H) m."""
-
-    centres: np.ndarray
-    radii: np.ndarray
-    contacts: np.ndarray
-    box: tuple[float, float]
-    seed: int = 0
-
-    @property
-    def porosity(self) -> float:
-        return 1.0 - float(np.sum(np.pi * self.radii**2)) / (self.box[0] * self.box[1])
-
-    def save(self, path) -> None:
-        np.savez_compressed(path, centres=self.centres, radii=self.radii, contacts=self.contacts,
-                            box=np.asarray(self.box), seed=self.seed)
-
-    @classmethod
-    def load(cls, path) -> "DiscPacking":
-        with np.load(path) as f:
-            return cls(f["centres"], f["radii"], f["contacts"], tuple(f["box"]), int(f["seed"]))
 
 
 def target_radii(n: int, mean_radius: float, spread: float, porosity: float, box, rng) -> np.ndarray:

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .sparse import CsrPattern, solve_spd
+from .sparse import CsrPattern, SpdSolver
 
 MAX_ACTIVE_SET_PASSES = 40
 
@@ -57,6 +57,7 @@ class PressureSystem:
         rows = np.concatenate([diag, na[self.va], nb[self.vb], na[self.vab], nb[self.vab]])
         cols = np.concatenate([diag, na[self.va], nb[self.vb], nb[self.vab], na[self.vab]])
         self.pattern = CsrPattern(rows, cols, n)
+        self.solver = SpdSolver()
         self.domain_is_unknown = node >= 0
 
     def to_nodes(self, per_domain: np.ndarray) -> np.ndarray:
@@ -116,7 +117,7 @@ class PressureSystem:
             cap_flux = orient * g_open * entry_pressure  # capillary part of the a -> b flux
             A = self.matrix(storage_node, g_open)
             B = rhs_node + self.pipe_source_to_nodes(cap_flux)
-            p = self.domain_values(solve_spd(A, B))
+            p = self.domain_values(self.solver.solve(A, B))
             dp = p[self.pipe_a] - p[self.pipe_b]
             margin = np.where(front, orient * dp + entry_pressure, 0.0)
             if hold_blocked:
