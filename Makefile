@@ -36,6 +36,7 @@ validate: setup
 
 bench: setup
 	$(PY) benchmarks/run_benchmarks.py
+	$(PY) benchmarks/scaling.py
 
 packing: setup
 	$(PY) -m hmdem.dem.packing --out hmdem/data/lenormand_packing.npz

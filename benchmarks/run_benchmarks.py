@@ -35,11 +35,17 @@ def main():
         rates[name] = state.t / cpu
         print(f"| {name} | {rec.status} | {state.t:.4g} | {rec.steps} | {rec.solves} | {rec.wall_time:.1f} | {cpu:.1f} |")
     if "vf" in rates:
-        state, rec, cpu = run("vf", scheme="explicit", dt=1.0, max_steps=args.explicit_steps)
-        ex = state.t / cpu
-        print(f"\nvf simulated seconds per CPU second: implicit {rates['vf']:.3g}, explicit {ex:.3g} "
-              f"({rec.steps} explicit steps, dt ~ {state.t / rec.steps:.2g} s); ratio {rates['vf'] / ex:.3g}")
-
-
-if __name__ == "__main__":
-    main()
+        # explicit reference (Eqs. 29-30): its step is set by the stiffest domain, so measure it both
+        # at the start (oil only) and from the implicit state at t = 5 s (air cluster present)
+        _, rec, cpu = run("vf", scheme="explicit", dt=1.0, max_steps=args.explicit_steps)
+        early = rec.rows[-1][0] / cpu
+        mid_state, _, _ = run("vf", t_max=5.0)
+        t0 = mid_state.t
+        sc = build_scenario(CASES["vf"], scheme="explicit")
+        sc.setup.dt, sc.setup.max_steps = 1.0, args.explicit_steps
+        c0 = time.process_time()
+        state, rec = FlowModel(sc.net, sc.setup).run(mid_state)
+        mid = (state.t - t0) / (time.process_time() - c0)
+        print(f"\nvf simulated seconds per CPU second: implicit {rates['vf']:.3g} (whole run); explicit {early:.3g} "
+              f"at the start, {mid:.3g} from t = 5 s ({args.explicit_steps} steps, dt ~ {(state.t - t0) / rec.steps:.2g} s); "
+              f"ratio {rates['vf'] / early:.3g} / {rates['vf'] / mid:.3g}")

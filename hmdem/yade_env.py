@@ -3,7 +3,8 @@
 Debian 12's ``python3-yade`` installs its modules in ``/usr/lib/x86_64-linux-gnu/yade-double/py``
 but the ``/usr/lib/python3/dist-packages/yade`` symlink points to a folder that does not exist.
 :func:`import_yade` puts the real folder on ``sys.path`` (``HMDEM_YADE_PATH`` overrides the search)
-and imports ``yade``. Nothing outside :mod:`hmdem.dem` should call it.
+and imports ``yade``, single-threaded unless ``OMP_NUM_THREADS`` says otherwise. Nothing outside
+:mod:`hmdem.dem` should call it.
 """
 
 from __future__ import annotations
@@ -49,6 +50,9 @@ def import_yade():
     """
     if "yade" in sys.modules and hasattr(sys.modules["yade"], "O"):
         return sys.modules["yade"]
+    # one OpenMP thread unless the user asks for more: YADE's parallel force sums are not
+    # reproducible bit for bit, and packings must be deterministic for a seed
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
     for path in candidate_paths():
         if path not in sys.path:
             sys.path.insert(0, path)

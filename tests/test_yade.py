@@ -41,3 +41,16 @@ def test_yade_generates_a_small_planar_packing():
     assert np.all((pk.centres > 0) & (pk.centres < 0.02))  # the walls held
     net = build_contact_network(pk.centres, pk.radii, pk.contacts)
     assert net.euler_characteristic() == 2 and net.n_domains > 100
+
+
+@pytest.mark.yade
+def test_shipped_packing_is_reproduced_by_its_command(tmp_path):
+    # `make packing` (python -m hmdem.dem.packing, seed 0) regenerates the shipped file exactly
+    from hmdem.dem.packing import main
+    from hmdem.scenario import load_packing
+
+    out = tmp_path / "p.npz"
+    assert main(["--out", str(out)]) == 0
+    new, shipped = load_packing(out), load_packing()
+    np.testing.assert_array_equal(new.centres, shipped.centres)
+    np.testing.assert_array_equal(new.contacts, shipped.contacts)

@@ -1,10 +1,18 @@
 """Regenerate the default Lenormand packing from inside YADE.
 
-    yade -n -x yade_scripts/make_packing.py            # writes lenormand_packing.npz here
-The same as `make packing` / `python -m hmdem.dem.packing --out FILE`.
+    yade -n -x yade_scripts/make_packing.py [OUT.npz]     # default: lenormand_packing.npz here
+
+The same as `make packing` / `python -m hmdem.dem.packing --out FILE`. The yade launcher runs
+Debian's Python, so the repository root is put on sys.path to find hmdem.
 """
 import sys
+from pathlib import Path
 
-from hmdem.dem.packing import main
+# under `yade -x`, __file__ is the launcher; sys.argv[0] is this script
+sys.path.insert(0, str(Path(sys.argv[0]).resolve().parent.parent))
 
-sys.exit(main(["--out", "lenormand_packing.npz"]))
+from hmdem.dem.packing import main  # noqa: E402
+
+out = sys.argv[1] if len(sys.argv) > 1 else "lenormand_packing.npz"
+code = main(["--out", out])
+sys.exit(code)

@@ -8,7 +8,6 @@ deterministic for a given seed (YADE runs single-threaded here).
 
 from __future__ import annotations
 
-import os
 import time
 import numpy as np
 from scipy.spatial import cKDTree
@@ -60,7 +59,6 @@ def generate_packing(
     relax_cycles: int = 4000,
 ) -> DiscPacking:
     """Generate a dense random disc packing with YADE (seed 004 §4.1 geometry by default)."""
-    os.environ.setdefault("OMP_NUM_THREADS", "1")
     from ..yade_env import import_yade
 
     import_yade()

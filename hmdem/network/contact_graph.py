@@ -46,6 +46,9 @@ def _triangle_areas(points: np.ndarray, simplices: np.ndarray) -> np.ndarray:
 def build_contact_network(centres: np.ndarray, radii: np.ndarray, contacts: np.ndarray | None = None) -> Network:
     """Build domains and pipes from disc centres, radii and contact pairs.
 
+    ``pipe_domains[:, 0]`` is the face to the left of the directed segment from
+    ``pipe_grains[:, 0]`` to ``pipe_grains[:, 1]`` (needed for the grain forces of Eq. 8).
+
     Pipes have length r1 + r2 (seed 004 Eq. 1); apertures are left at zero for the caller
     (fixed grains: :func:`hmdem.network.apertures.uniform_apertures`). Contacts of clusters not
     connected to the main contact graph are dropped so that the Euler check holds.
@@ -100,6 +103,11 @@ def build_contact_network(centres: np.ndarray, radii: np.ndarray, contacts: np.n
     first = is_contact & ((nbr < 0) | (t_idx < nbr))  # visit each edge once
     pipe_grains = np.stack([lo[first], hi[first]], axis=1)
     pipe_domains = np.stack([side_a[first], side_b[first]], axis=1)
+    # orient: pipe_domains[:, 0] lies to the left of grain 0 -> grain 1 (the triangle's third vertex)
+    tri_of_edge, opposite = first.nonzero()  # edge k of a triangle is opposite its vertex k
+    x0, x1, x3 = centres[lo[first]], centres[hi[first]], centres[simp[tri_of_edge, opposite]]
+    cross = (x1[:, 0] - x0[:, 0]) * (x3[:, 1] - x0[:, 1]) - (x1[:, 1] - x0[:, 1]) * (x3[:, 0] - x0[:, 0])
+    pipe_domains[cross < 0] = pipe_domains[cross < 0][:, ::-1]
     order = np.lexsort((pipe_grains[:, 1], pipe_grains[:, 0]))
     pipe_grains, pipe_domains = pipe_grains[order], pipe_domains[order]
     pipe_length = radii[pipe_grains[:, 0]] + radii[pipe_grains[:, 1]]
