@@ -49,3 +49,7 @@ def main():
         print(f"\nvf simulated seconds per CPU second: implicit {rates['vf']:.3g} (whole run); explicit {early:.3g} "
               f"at the start, {mid:.3g} from t = 5 s ({args.explicit_steps} steps, dt ~ {(state.t - t0) / rec.steps:.2g} s); "
               f"ratio {rates['vf'] / early:.3g} / {rates['vf'] / mid:.3g}")
+
+
+if __name__ == "__main__":
+    main()
