@@ -137,8 +137,7 @@ class FlowModel:
     # ---- implicit step ---------------------------------------------------------------------
     def _trial(self, state, dt, g, orient, pc, blocked, hold=False):
         storage = self.storage_coefficient(state) / dt
-        rhs = storage * state.pressure + self.source
-        sol = self.system.solve(storage, rhs, g, orient, pc, blocked, hold_blocked=hold)
+        sol = self.system.solve(storage, state.pressure, self.source, g, orient, pc, blocked, hold_blocked=hold)
         self.record.solves += sol.passes
         fill = self._fill_rates(state, sol, storage, orient)
         return sol, fill
