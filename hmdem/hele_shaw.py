@@ -17,6 +17,7 @@ from . import __version__
 from .cases import CASES
 
 CASE_NAMES = tuple(CASES)
+EXPLICIT_DEFAULT_MAX_STEPS = 100_000
 
 
 class InputError(ValueError):
@@ -128,6 +129,11 @@ def run_linear(args) -> int:
     sc = build_scenario(case, seed=args.seed, inlet=args.inlet, scheme=args.scheme, packing_path=args.packing)
     if args.max_steps is not None:
         sc.setup.max_steps = int(args.max_steps)
+    elif args.scheme == "explicit" and args.t_max is None:
+        # the explicit step is ~1e-8 s: a run to breakthrough would take ~1e9 steps
+        sc.setup.max_steps = EXPLICIT_DEFAULT_MAX_STEPS
+        print(f"explicit scheme: stopping after {EXPLICIT_DEFAULT_MAX_STEPS} steps (set --max-steps or --t-max)",
+              file=sys.stderr)
     model = FlowModel(sc.net, sc.setup)
     bar = None if args.quiet else FrontProgress(case.name, sc.setup)
     state, rec = model.run(progress=bar)
