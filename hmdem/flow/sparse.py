@@ -55,7 +55,7 @@ class SpdSolver:
             self._order = (q, permuted.indices, permuted.indptr, permuted.data.astype(np.int64) - 1)
         return self._order
 
-    def solve(self, A: sp.csr_matrix, b: np.ndarray, x0: np.ndarray | None = None, rtol: float = 1e-12) -> np.ndarray:
+    def solve(self, A: sp.csr_matrix, b: np.ndarray, rtol: float = 1e-12) -> np.ndarray:
         n = A.shape[0]
         if n == 0:
             return np.zeros(0)
@@ -81,8 +81,7 @@ class SpdSolver:
             import pyamg
 
             ml = pyamg.smoothed_aggregation_solver(As, symmetry="symmetric")
-            y0 = None if x0 is None else x0 / scale
-            y, _ = spla.cg(As, bs, x0=y0, rtol=rtol, maxiter=500, M=ml.aspreconditioner())
+            y, _ = spla.cg(As, bs, rtol=rtol, maxiter=500, M=ml.aspreconditioner())
         res = np.linalg.norm(bs - As @ y) / bnorm
         # a failed solve, not round-off: near-singular held systems (Eq. 19) reach ~1e-7
         if not np.isfinite(res) or res > 1e-5:
