@@ -54,6 +54,7 @@ def summarize(sc, model, state, rec) -> dict:
         "eq19_steps": rec.eq19_steps,
         "linear_solves": rec.solves,
         "max_mass_balance_error": rec.max_mass_balance_error,
+        "run_mass_balance_error": rec.run_mass_balance_error(sc.setup.rate, state.t),
         "simulated_time_s": state.t,
         "wall_time_s": rec.wall_time,
         "ca_star": sc.ca_star,
