@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .ordering import nested_dissection
 from .sparse import CsrPattern, SpdSolver
 
 MAX_ACTIVE_SET_PASSES = 40
@@ -40,11 +41,12 @@ class PressureSystem:
 
     ``pipe_a``, ``pipe_b``: domain ids at the two ends of each flowing pipe.
     ``node``: unknown index per domain, -1 for Dirichlet (p = 0) domains.
+    ``domain_xy``: domain positions, if known, for a nested-dissection ordering of the unknowns.
     Pipes whose two ends map to the same unknown, or both to Dirichlet, carry no flow and must
     not be passed in.
     """
 
-    def __init__(self, pipe_a: np.ndarray, pipe_b: np.ndarray, node: np.ndarray):
+    def __init__(self, pipe_a: np.ndarray, pipe_b: np.ndarray, node: np.ndarray, domain_xy: np.ndarray | None = None):
         self.pipe_a, self.pipe_b, self.node = pipe_a, pipe_b, node
         self.n_unknowns = int(node.max()) + 1 if node.size and node.max() >= 0 else 0
         na, nb = node[pipe_a], node[pipe_b]
@@ -58,8 +60,20 @@ class PressureSystem:
         rows = np.concatenate([diag, na[self.va], nb[self.vb], na[self.vab], nb[self.vab]])
         cols = np.concatenate([diag, na[self.va], nb[self.vb], nb[self.vab], na[self.vab]])
         self.pattern = CsrPattern(rows, cols, n)
-        self.solver = SpdSolver()
         self.domain_is_unknown = node >= 0
+        ordering = None
+        if domain_xy is not None and n > 0:
+            adjacency = self.pattern.matrix(np.ones(len(rows)))
+            ordering = nested_dissection(adjacency, self.node_means(domain_xy))
+        self.solver = SpdSolver(ordering)
+
+    def node_means(self, per_domain: np.ndarray) -> np.ndarray:
+        """Mean of a per-domain quantity (scalar or vector) over the domains of each unknown."""
+        m = self.domain_is_unknown
+        count = np.bincount(self.node[m], minlength=self.n_unknowns)
+        values = per_domain[m].reshape(m.sum(), -1)
+        columns = [np.bincount(self.node[m], values[:, k], self.n_unknowns) / count for k in range(values.shape[1])]
+        return np.stack(columns, axis=1).reshape((self.n_unknowns,) + per_domain.shape[1:])
 
     def to_nodes(self, per_domain: np.ndarray) -> np.ndarray:
         """Sum a per-domain quantity onto the unknowns (Dirichlet domains dropped)."""

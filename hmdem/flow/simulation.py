@@ -100,7 +100,7 @@ class FlowModel:
         # pipes inside the inlet manifold or between two outflow domains carry no flow
         keep = node[a] != node[b]
         self.pipes = pipes[keep]
-        self.system = PressureSystem(a[keep], b[keep], node)
+        self.system = PressureSystem(a[keep], b[keep], node, net.domain_centroid)
         self.pipe_a, self.pipe_b = a[keep], b[keep]
         self.source = np.zeros(n)
         self.source[self.inlet] = setup.rate / max(len(self.inlet), 1)

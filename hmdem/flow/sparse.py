@@ -12,6 +12,7 @@ import scipy.sparse.linalg as spla
 
 DIRECT_MAX_UNKNOWNS = 60_000  # above this, pyamg-preconditioned CG
 MAX_REFINEMENTS = 6  # iterative-refinement passes after the first solve
+REFINED = 1e-17  # stop refining at this residual relative to the terms of b
 
 
 class LinearSolveError(RuntimeError):
@@ -39,19 +40,23 @@ class SpdSolver:
     """Solves A x = b for symmetric positive definite matrices sharing one CSR pattern.
 
     Rows and columns are scaled to a unit diagonal (conductances span many decades, digest
-    §15.4). Up to ``DIRECT_MAX_UNKNOWNS`` unknowns: SuperLU with a fill-reducing ordering computed
-    once (COLAMD on the first matrix) and no pivoting, which is stable for SPD matrices and ~3x
-    cheaper than ordering every factorisation. Above that size: CG preconditioned by
+    §15.4). Up to ``DIRECT_MAX_UNKNOWNS`` unknowns: SuperLU with a fill-reducing ordering fixed
+    once (the one given, e.g. nested dissection, else COLAMD on the first matrix) and no
+    pivoting, which is stable for SPD matrices and ~3x cheaper than ordering every
+    factorisation. Above that size: CG preconditioned by
     smoothed-aggregation AMG (pyamg). Either way the answer is refined against the caller's
     residual and checked.
     """
 
-    def __init__(self):
+    def __init__(self, ordering: np.ndarray | None = None):
+        self._fill_reducing = ordering  # new position -> unknown; None: COLAMD on the first matrix
         self._order = None  # (permutation q, permuted CSC indices, indptr, data map)
 
     def _ordering(self, A: sp.csr_matrix):
         if self._order is None:
-            q = np.argsort(spla.splu(A.tocsc(), permc_spec="COLAMD").perm_c)
+            q = self._fill_reducing
+            if q is None:
+                q = np.argsort(spla.splu(A.tocsc(), permc_spec="COLAMD").perm_c)
             marker = sp.csr_matrix((np.arange(1, A.nnz + 1, dtype=float), A.indices, A.indptr), shape=A.shape)
             permuted = marker[q][:, q].tocsc()
             self._order = (q, permuted.indices, permuted.indptr, permuted.data.astype(np.int64) - 1)
@@ -87,9 +92,10 @@ class SpdSolver:
         y = correction(bs)
         y = y.astype(np.longdouble)  # refined in extended precision
         r = scaled_residual(y)
+        size = bnorm if b_size is None else max(bnorm, np.linalg.norm(b_size * scale))
         for _ in range(MAX_REFINEMENTS):
             rnorm = np.linalg.norm(r)
-            if rnorm <= 1e-17 * bnorm:
+            if rnorm <= REFINED * size:
                 break
             step = correction(r.astype(float))
             r_next = scaled_residual(y + step)
@@ -97,7 +103,7 @@ class SpdSolver:
                 y, r = y + step, r_next
             if np.linalg.norm(r_next) >= 0.5 * rnorm:  # at the round-off floor
                 break
-        res = np.linalg.norm(r) / (bnorm if b_size is None else max(bnorm, np.linalg.norm(b_size * scale)))
+        res = np.linalg.norm(r) / size
         # a failed solve, not round-off: near-singular held systems (Eq. 19) reach ~1e-7
         if not np.isfinite(res) or res > 1e-5:
             raise LinearSolveError(f"pressure solve residual {res:.2e} (n = {n})")
