@@ -15,10 +15,16 @@ import numpy as np
 from ..network.network import OUTSIDE, Network
 
 
-def grain_pressure_forces(net: Network, radii: np.ndarray, pressure: np.ndarray) -> np.ndarray:
-    """Force (n_grains, 2) [N per m of depth] on every grain from the domain pressures (Eq. 8)."""
+def grain_pressure_forces(net: Network, radii: np.ndarray, pressure: np.ndarray,
+                          positions: np.ndarray | None = None) -> np.ndarray:
+    """Force (n_grains, 2) [N per m of depth] on every grain from the domain pressures (Eq. 8).
+
+    ``positions``: current grain centres (n_grains, 2) when grains have moved since the network
+    was built (the topology, and so which domains touch which corner, is fixed).
+    """
+    points = net.points if positions is None else positions
     g0, g1 = net.pipe_grains[:, 0], net.pipe_grains[:, 1]
-    u = net.points[g1] - net.points[g0]
+    u = points[g1] - points[g0]
     u /= np.linalg.norm(u, axis=1)[:, None]
     right = np.c_[u[:, 1], -u[:, 0]]  # J(u): out of the left domain, into the right one
     left, right_dom = net.pipe_domains[:, 0], net.pipe_domains[:, 1]

@@ -104,6 +104,9 @@ class FlowModel:
         self.pipe_a, self.pipe_b = a[keep], b[keep]
         self.source = np.zeros(n)
         self.source[self.inlet] = setup.rate / max(len(self.inlet), 1)
+        # dV_i of the current step (Eq. 15's -dV/dt source): zero for fixed grains, set by a
+        # hydro-mechanical coupling inside its pressure-volume iteration
+        self.volume_change = np.zeros(n)
         self.volume = net.domain_volume
         # distance to the outlet, for a front-progress figure
         d_out = cKDTree(net.domain_centroid[self.outlet]).query(net.domain_centroid)[0]
@@ -145,9 +148,10 @@ class FlowModel:
     # ---- implicit step ---------------------------------------------------------------------
     def _trial(self, state, dt, g, orient, pc, blocked, hold=False):
         storage = self.storage_coefficient(state) / dt
-        sol = self.system.solve(storage, state.pressure, self.source, g, orient, pc, blocked, hold_blocked=hold)
+        source = self.source - self.volume_change / dt
+        sol = self.system.solve(storage, state.pressure, source, g, orient, pc, blocked, hold_blocked=hold)
         self.record.solves += sol.passes
-        fill = self._fill_rates(state, sol, storage, orient)
+        fill = self._fill_rates(state, sol, storage, orient, dt)
         return sol, fill
 
     def _invading_inflow(self, state, orient, pipe_flux, inlet_rate):
@@ -157,11 +161,12 @@ class FlowModel:
         fill[filling] += np.maximum(inlet_rate[filling], 0.0)
         return fill
 
-    def _fill_rates(self, state, sol, storage, orient):
+    def _fill_rates(self, state, sol, storage, orient, dt):
         if not self.setup.two_phase:
             return np.zeros(self.net.n_domains)
         # rate from the inlet into each inflow domain: its storage change plus its net pipe outflow
-        inlet_rate = storage * (sol.pressure - state.pressure) + self.system.divergence(sol.pipe_flux)
+        inlet_rate = (storage * (sol.pressure - state.pressure) + self.volume_change / dt
+                      + self.system.divergence(sol.pipe_flux))
         return self._invading_inflow(state, orient, sol.pipe_flux, inlet_rate)
 
     def _margins(self, pressure, orient, pc):
@@ -294,16 +299,16 @@ class FlowModel:
         dp = sol.pressure[self.pipe_a] - sol.pressure[self.pipe_b]
         rec.dissipated_energy += float(np.sum(sol.pipe_flux * dp)) * dt  # Eq. 26, viscous part
         rec.peak_injection_pressure = max(rec.peak_injection_pressure, p_in)
-        # discrete mass balance of the step (digest U8): sum_i (V_i/K_i)(p^{n+1} - p^n) =
+        # discrete mass balance of the step (digest U8): sum_i [(V_i/K_i)(p^{n+1} - p^n) + dV_i] =
         # (Q_in - Q_out) dt, with p^{n+1} - p^n the increment the scheme produced. Storing
         # p^n + increment in a double rounds it by ~1e-16 |p|, which in the shortest Eq. 18 steps
         # (dt ~1e-5 s in cf1) is ~1e-10 of Q dt; the run-long balance below includes that rounding.
         known = self.system.domain_is_unknown
         storage = self.storage_coefficient(state)
-        stored = float(np.sum((storage * sol.increment)[known]))
+        stored = float(np.sum((storage * sol.increment + self.volume_change)[known]))
         defect = abs(stored - (self.setup.rate - q_out) * dt) / (self.setup.rate * dt)
         rec.max_mass_balance_error = max(rec.max_mass_balance_error, defect)
-        rec.stored_volume += float(np.sum((storage * (sol.pressure - state.pressure))[known]))
+        rec.stored_volume += float(np.sum((storage * (sol.pressure - state.pressure) + self.volume_change)[known]))
         rec.outflow_volume += q_out * dt
         state.pressure = sol.pressure
         state.t += dt

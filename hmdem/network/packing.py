@@ -2,20 +2,26 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 
 @dataclass
 class DiscPacking:
-    """A 2D packing: centres (n, 2) m, radii (n,) m, contacts (k, 2), box (W, H) m."""
+    """A 2D packing: centres (n, 2) m, radii (n,) m, contacts (k, 2), box (W, H) m.
+
+    ``fixed`` (n,) marks boundary grains held in place in coupled runs (empty: none);
+    ``confining_stress`` [Pa] is the wall stress the sample was compacted to (0: not servoed).
+    """
 
     centres: np.ndarray
     radii: np.ndarray
     contacts: np.ndarray
     box: tuple[float, float]
     seed: int = 0
+    fixed: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    confining_stress: float = 0.0
 
     @property
     def porosity(self) -> float:
@@ -23,9 +29,12 @@ class DiscPacking:
 
     def save(self, path) -> None:
         np.savez_compressed(path, centres=self.centres, radii=self.radii, contacts=self.contacts,
-                            box=np.asarray(self.box), seed=self.seed)
+                            box=np.asarray(self.box), seed=self.seed, fixed=np.asarray(self.fixed, bool),
+                            confining_stress=self.confining_stress)
 
     @classmethod
     def load(cls, path) -> "DiscPacking":
         with np.load(path) as f:
-            return cls(f["centres"], f["radii"], f["contacts"], tuple(f["box"]), int(f["seed"]))
+            fixed = f["fixed"] if "fixed" in f.files else np.zeros(0, bool)
+            stress = float(f["confining_stress"]) if "confining_stress" in f.files else 0.0
+            return cls(f["centres"], f["radii"], f["contacts"], tuple(f["box"]), int(f["seed"]), fixed, stress)

@@ -1,0 +1,114 @@
+"""Huang et al. (2012) radial-injection cases with movable grains (seed 004 §4.2, digest §11.2).
+
+Wetting water-glycerol (5 cP, group A; 176 cP, group B) injected at the centre of an
+air-filled, servo-compacted 1.25 mm sample of 1,395 discs, r in [13, 21.6] um, boundary grains
+fixed, outflow domains (p = 0) all round. Q follows from Ca* with the injection domain's
+perimeter as Sigma, a0 as the mean aperture and L = the sample side (digest §10.3 recipe).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from importlib import resources
+
+import numpy as np
+
+from ..cases import CP, MPA, rate_from_ca_star
+from ..flow.fluids import FluidPair
+from ..flow.simulation import FlowSetup
+from ..network import build_contact_network, find_contacts
+from ..network.boundaries import central_injection_boundaries
+from ..network.network import Network
+from ..network.packing import DiscPacking
+from .apertures import ApertureLaw
+from .model import CouplingSetup
+
+AIR_VISCOSITY = 0.018 * CP
+SETTLE_CYCLES = 2000  # relaxation after loading the packing (contact shear history is not stored)
+
+
+def huang_fluids(viscosity_inv: float) -> FluidPair:
+    """Water-glycerol into air, Table 3: K 2000 / 0.14 MPa, gamma 63 dyn/cm, theta 0 (imbibition)."""
+    return FluidPair(viscosity_inv, AIR_VISCOSITY, 2000 * MPA, 0.14 * MPA, 63.0e-3, 0.0)
+
+
+@dataclass(frozen=True)
+class RadialCase:
+    name: str
+    viscosity_inv: float  # Pa s
+    ca_star: float
+    dt: float  # nominal flow step [s] (seed 004 Table 4)
+    expected_regime: str  # the paper's label, for reference only
+
+
+RADIAL_CASES = {
+    "A1": RadialCase("A1", 5 * CP, 1.6, 1.0e-5, "infiltration"),
+    "A3": RadialCase("A3", 5 * CP, 32.3, 8.0e-7, "infiltration-dominated with fracturing"),
+    "B1": RadialCase("B1", 176 * CP, 56.3, 1.0e-5, "infiltration-dominated with fracturing"),
+    "B3": RadialCase("B3", 176 * CP, 1138.1, 8.0e-7, "fracturing-dominated"),
+}
+
+
+def default_huang_packing_path():
+    """The shipped servo-compacted Huang sample (regenerate with ``make huang-packing``)."""
+    return resources.files("hmdem") / "data" / "huang_packing.npz"
+
+
+def domain_perimeter(net: Network, domain: int) -> float:
+    """Centre-polygon perimeter of a domain: the lengths of its contact edges."""
+    edges = net.pipe_grains[(net.pipe_domains == domain).any(axis=1)]
+    return float(np.linalg.norm(net.points[edges[:, 1]] - net.points[edges[:, 0]], axis=1).sum())
+
+
+def radial_network(pk: DiscPacking, contact_gap: float = 0.08) -> Network:
+    """Contact network of the sample with the central inflow domain and the outer ring of outflow
+    domains. Pairs closer than ``contact_gap`` x the smaller radius count as contacts, as for the
+    fixed-grain packings (decisions.md); those start detached, with the Eq. 14 aperture."""
+    near = find_contacts(pk.centres, pk.radii, tolerance=contact_gap)
+    contacts = np.unique(np.concatenate([pk.contacts.reshape(-1, 2), near]), axis=0)
+    net = build_contact_network(pk.centres, pk.radii, contacts)
+    net.check_euler()
+    net.inlet_domains, net.outlet_domains = central_injection_boundaries(net)
+    return net
+
+
+@dataclass
+class RadialScenario:
+    case: RadialCase
+    packing: DiscPacking
+    net: Network
+    setup: FlowSetup
+    coupling: CouplingSetup
+    sigma: float
+    length: float
+    ca_star: float
+
+
+def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, ca_star: float | None = None,
+                          viscosity_ratio: float | None = None, one_way: bool = False,
+                          aperture_law: ApertureLaw | None = None) -> RadialScenario:
+    """Network, flow set-up and coupling parameters of a radial case (no DEM yet, no YADE)."""
+    pk = packing or DiscPacking.load(default_huang_packing_path())
+    net = radial_network(pk)
+    eta_inv = case.viscosity_inv if viscosity_ratio is None else viscosity_ratio * AIR_VISCOSITY
+    fluids = huang_fluids(eta_inv)
+    law = aperture_law or ApertureLaw()
+    sigma = domain_perimeter(net, int(net.inlet_domains[0]))
+    length = float(pk.box[0])
+    ca = case.ca_star if ca_star is None else ca_star
+    rate = rate_from_ca_star(ca, fluids, sigma, length, law.residual_aperture)
+    setup = FlowSetup(fluids, rate, case.dt)
+    coupling = CouplingSetup(aperture_law=law, one_way=one_way)
+    return RadialScenario(case, pk, net, setup, coupling, sigma, length, ca)
+
+
+def start_grains(sc: RadialScenario):
+    """The YADE disc assembly of the scenario's packing, settled; sets the stable DEM step."""
+    from ..dem.assembly import DiscAssembly
+
+    pk = sc.packing
+    fixed = pk.fixed if len(pk.fixed) else None
+    grains = DiscAssembly(pk.centres, pk.radii, fixed=fixed)
+    sc.coupling.stable_dem_step = grains.timestep
+    grains.run(SETTLE_CYCLES)
+    return grains

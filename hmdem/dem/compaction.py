@@ -1,0 +1,141 @@
+"""Servo-controlled isotropic compaction of a disc sample (Huang set-up, seed 004 §4.2).
+
+Discs with radii uniform in [r_min, r_max] are seeded loosely in a box larger than the
+target, grown to size and pushed together by four frictionless walls whose velocity is
+servo-controlled until the mean wall stress (force per wall length, 1 m depth) equals the
+target confining stress. Compaction is frictionless (the usual way to reach a dense state);
+the grains get their working friction afterwards. The grains touching a wall at the end are
+the fixed boundary grains of the injection runs (digest §11.2: "all boundary grains are fixed").
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..network.packing import DiscPacking
+from ..yade_env import import_yade
+from .assembly import run_cycles
+from .discs import add_disc, disc_contacts, disc_material, disc_state
+from .packing import random_seed_positions
+
+UNBALANCED_FORCE = 1e-3
+WALLS = ((0, -1), (0, +1), (1, -1), (1, +1))  # (axis, side): left, right, bottom, top
+
+
+def compact_sample(n: int = 1395, size: float = 1.25e-3, r_min: float = 13.0e-6, r_max: float = 21.6e-6,
+                   stress: float = 0.14e6, seed: int = 0, k_n: float = 7.49e7, density: float = 2650.0,
+                   loose_factor: float = 1.15, tolerance: float = 0.005, max_cycles: int = 400_000,
+                   progress=None) -> DiscPacking:
+    """Compact n discs to the confining ``stress`` [Pa]; returns the packing with ``fixed`` set.
+
+    ``size``: nominal final box side (only sets the starting box, loose_factor x size); the
+    final box follows from the stress. Stops when all four wall stresses are within
+    ``tolerance`` of the target and the grains are in equilibrium (YADE's unbalanced force,
+    mean resultant over mean contact force, below ``UNBALANCED_FORCE``).
+    """
+    import_yade()
+    from yade import O, utils
+    from yade.minieigenHP import Vector3
+    from yade.wrapper import (Bo1_Sphere_Aabb, Bo1_Wall_Aabb, ForceResetter, FrictMat, Ig2_Sphere_Sphere_ScGeom,
+                              Ig2_Wall_Sphere_ScGeom, InsertionSortCollider, InteractionLoop,
+                              Ip2_FrictMat_FrictMat_FrictPhys, Law2_ScGeom_FrictPhys_CundallStrack,
+                              NewtonIntegrator)
+
+    rng = np.random.default_rng(seed)
+    radii = rng.uniform(r_min, r_max, n)
+    box0 = loose_factor * size
+    shrink = 0.5
+    pos = random_seed_positions(radii, (box0, box0), shrink, rng)
+
+    O.reset()
+    wall_mat = O.materials.append(FrictMat(young=k_n / r_max, poisson=1.0, frictionAngle=0.0, density=density))
+    walls = []
+    for axis, side in WALLS:
+        origin = [0.0, 0.0, 0.0]
+        origin[axis] = 0.0 if side < 0 else box0
+        walls.append(O.bodies.append(utils.wall(tuple(origin), axis=axis, sense=-side, material=wall_mat)))
+    ids = []
+    for k in range(n):  # scene set-up, once
+        mat = O.materials.append(disc_material(radii[k], k_n, 1.0, 0.0, density))
+        ids.append(add_disc(pos[k, 0], pos[k, 1], shrink * radii[k], mat))
+    O.engines = [
+        ForceResetter(),
+        InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb()]),
+        InteractionLoop([Ig2_Sphere_Sphere_ScGeom(), Ig2_Wall_Sphere_ScGeom()],
+                        [Ip2_FrictMat_FrictMat_FrictPhys()], [Law2_ScGeom_FrictPhys_CundallStrack()]),
+        NewtonIntegrator(damping=0.7),
+    ]
+    O.dt = 0.5 * utils.PWaveTimeStep()
+    stages = 40
+    for _ in range(stages):
+        utils.growParticles((1.0 / shrink) ** (1.0 / stages), updateMass=False, dynamicOnly=True)
+        run_cycles(O, 200)
+
+    def wall_positions():
+        return np.array([O.bodies[w].state.pos[axis] for w, (axis, _) in zip(walls, WALLS)])
+
+    def wall_stresses():
+        x = wall_positions()
+        width, height = x[1] - x[0], x[3] - x[2]
+        force = np.array([abs(O.forces.f(w)[axis]) for w, (axis, _) in zip(walls, WALLS)])
+        return force / np.array([height, height, width, width])  # N per m of wall per m of depth
+
+    # servo: wall speed proportional to the stress deficit, scaled so one chunk of cycles moves a
+    # wall by at most the overlap change that the deficit asks for over ~10 contacts in series
+    chunk = 100
+    gain = 0.2 * size / (k_n * chunk * O.dt)
+    mean_r = radii.mean()
+    cycles = 0
+    while cycles < max_cycles:
+        s = wall_stresses()
+        deficit = (stress - s) / stress
+        done = np.all(np.abs(deficit) < tolerance)
+        if done and utils.unbalancedForce() < UNBALANCED_FORCE:
+            break
+        speed = np.clip(gain * (stress - s), -0.02 * mean_r / (chunk * O.dt), 0.02 * mean_r / (chunk * O.dt))
+        for w, (axis, side), v in zip(walls, WALLS, speed):
+            vel = [0.0, 0.0, 0.0]
+            vel[axis] = -side * v  # inward when the stress is too low
+            O.bodies[w].state.vel = Vector3(*vel)
+        run_cycles(O, chunk)
+        cycles += chunk
+        if progress is not None:
+            progress(cycles, s)
+    for w in walls:
+        O.bodies[w].state.vel = Vector3(0, 0, 0)
+    centres, final_radii = disc_state(ids)
+    x = wall_positions()
+    # grains touching a wall form the fixed boundary ring
+    gap = np.min(np.stack([centres[:, 0] - x[0], x[1] - centres[:, 0], centres[:, 1] - x[2], x[3] - centres[:, 1]], 1), 1)
+    fixed = gap <= final_radii * (1.0 + 1e-6)
+    contacts = disc_contacts(ids)
+    box = (float(x[1] - x[0]), float(x[3] - x[2]))
+    final = wall_stresses()
+    O.reset()
+    centres = centres - np.array([x[0], x[2]])
+    return DiscPacking(centres, final_radii, contacts, box, seed, fixed=fixed, confining_stress=float(final.mean()))
+
+
+def main(argv=None) -> int:
+    import argparse
+    import time
+
+    parser = argparse.ArgumentParser(prog="python -m hmdem.dem.compaction",
+                                     description="Servo-compact a disc sample (Huang radial-injection set-up).")
+    parser.add_argument("--out", required=True)
+    parser.add_argument("--n", type=int, default=1395)
+    parser.add_argument("--size", type=float, default=1.25e-3, help="nominal box side [m]")
+    parser.add_argument("--stress", type=float, default=0.14e6, help="confining stress [Pa]")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args(argv)
+    t0 = time.perf_counter()
+    pk = compact_sample(args.n, args.size, stress=args.stress, seed=args.seed)
+    pk.save(args.out)
+    print(f"{len(pk.radii)} discs in {pk.box[0] * 1e3:.4f} x {pk.box[1] * 1e3:.4f} mm, porosity {pk.porosity:.4f}, "
+          f"{int(pk.fixed.sum())} fixed boundary grains, wall stress {pk.confining_stress / 1e6:.4f} MPa, "
+          f"{time.perf_counter() - t0:.0f} s -> {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

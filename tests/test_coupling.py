@@ -1,0 +1,82 @@
+"""Moving-grain geometry, pressure forces and apertures (issue 3; digest seed004 §2.5, §8, §13.1)."""
+
+import numpy as np
+import pytest
+
+from hmdem.coupling.apertures import ApertureLaw
+from hmdem.coupling.geometry import DomainGeometry
+from hmdem.flow.grain_forces import grain_pressure_forces
+from hmdem.network import build_contact_network
+from hmdem.scenario import load_packing
+
+
+@pytest.fixture(scope="module")
+def packing_network():
+    pk = load_packing()
+    return pk, build_contact_network(pk.centres, pk.radii, pk.contacts)
+
+
+def tangent_triangle(r):
+    """Three mutually touching discs of radii r (exact tangency)."""
+    d01, d02, d12 = r[0] + r[1], r[0] + r[2], r[1] + r[2]
+    x2 = (d02**2 - d12**2 + d01**2) / (2 * d01)
+    return np.array([[0.0, 0.0], [d01, 0.0], [x2, np.sqrt(d02**2 - x2**2)]])
+
+
+def test_volumes_follow_the_grains_and_tile_the_enclosed_area(packing_network):
+    pk, net = packing_network
+    geo = DomainGeometry(net)
+    np.testing.assert_allclose(geo.volumes(pk.centres), net.domain_volume, rtol=1e-13)
+    # move every grain by up to a tenth of its radius: the domains still tile the area inside
+    # the hull contacts exactly (a telescoping identity of the shoelace sums, 1e-12 rel)
+    rng = np.random.default_rng(7)
+    moved = pk.centres + rng.uniform(-0.1, 0.1, pk.centres.shape) * pk.radii[:, None]
+    v = geo.volumes(moved)
+    assert np.all(v > 0)
+    assert v.sum() == pytest.approx(geo.enclosed_area(moved), rel=1e-12)
+    assert v.sum() != pytest.approx(net.domain_volume.sum(), rel=1e-6)  # it did change
+
+
+def test_u5_moving_grains_uniform_pressure_zero_net_force(packing_network):
+    pk, net = packing_network
+    rng = np.random.default_rng(3)
+    moved = pk.centres + rng.uniform(-0.05, 0.05, pk.centres.shape) * pk.radii[:, None]
+    p = 3.0e5
+    f = grain_pressure_forces(net, pk.radii, np.full(net.n_domains, p), positions=moved)
+    g = net.pipe_grains
+    on_hull = np.zeros(len(pk.radii), bool)
+    on_hull[g[(net.pipe_domains < 0).any(axis=1)].ravel()] = True
+    inner = ~on_hull & (np.bincount(g.ravel(), minlength=len(pk.radii)) > 0)
+    assert np.abs(f[inner]).max() < 1e-12 * 2 * p * pk.radii.max()
+
+
+def test_pressure_forces_balance_force_and_torque():
+    # one domain of three touching discs of unequal radii at uniform pressure: the arc forces
+    # are the pressure on a closed curve, so they sum to zero force and zero moment about any
+    # point (1e-12 of p r); each is 2 p r sin(beta) (U5)
+    r = np.array([1.0e-3, 1.7e-3, 0.6e-3])
+    pts = tangent_triangle(r) + np.array([0.3, -0.2])
+    net = build_contact_network(pts, r, np.array([[0, 1], [0, 2], [1, 2]]))
+    p = 7.5e4
+    f = grain_pressure_forces(net, r, np.array([p]))
+    scale = p * r.max()
+    assert np.abs(f.sum(axis=0)).max() < 1e-12 * scale
+    torque = pts[:, 0] * f[:, 1] - pts[:, 1] * f[:, 0]
+    assert abs(torque.sum()) < 1e-12 * scale * np.abs(pts).max()
+    for i in range(3):
+        e = [(pts[j] - pts[i]) / np.linalg.norm(pts[j] - pts[i]) for j in range(3) if j != i]
+        beta = 0.5 * np.arccos(np.clip(e[0] @ e[1], -1, 1))
+        assert np.linalg.norm(f[i]) == pytest.approx(2 * p * r[i] * np.sin(beta), rel=1e-12)
+
+
+def test_u6_aperture_law_continuity_and_half_force():
+    law = ApertureLaw()
+    a0, f0 = law.residual_aperture, law.half_aperture_force
+    assert law(np.array([0.0]), np.array([0.0]))[0] == pytest.approx(a0, rel=1e-12)  # Eq. 14 at d = r1 + r2
+    assert law(np.array([1e-300]), np.array([0.0]))[0] == pytest.approx(a0, rel=1e-12)  # Eq. 13 at F -> 0+
+    assert law(np.array([f0]), np.array([0.0]))[0] == pytest.approx(a0 / 2, rel=1e-12)
+    gap = 2e-6
+    assert law(np.array([-1.0]), np.array([gap]))[0] == pytest.approx(a0 + 1.12 * gap, rel=1e-12)
+    forces = np.linspace(0, 10 * f0, 50)
+    assert np.all(np.diff(law(forces, np.zeros(50))) < 0)  # closing under load
+    np.testing.assert_array_equal(law.opened(np.array([-1.0, 0.0, 1.0])), [True, True, False])
