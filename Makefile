@@ -7,7 +7,7 @@ APT_PKGS := yade python3-yade python3-venv
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 STAMP := $(VENV)/.hmdem-installed
 
-.PHONY: setup demo test validate bench clean packing
+.PHONY: setup demo test validate bench clean packing huang-packing
 
 setup: $(STAMP)
 
@@ -40,6 +40,9 @@ bench: setup
 
 packing: setup
 	$(PY) -m hmdem.dem.packing --out hmdem/data/lenormand_packing.npz
+
+huang-packing: setup
+	$(PY) -m hmdem.dem.compaction --out hmdem/data/huang_packing.npz
 
 clean:
 	rm -rf $(VENV) runs

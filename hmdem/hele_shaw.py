@@ -2,6 +2,7 @@
 
     python -m hmdem.hele_shaw                       # the vf case into a fresh run directory
     python -m hmdem.hele_shaw linear --case cf1 --seed 3 --out runs/cf1
+    python -m hmdem.hele_shaw radial --case A3 --out runs/a3   # movable grains (YADE)
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from . import __version__
 from .cases import CASES
 
 CASE_NAMES = tuple(CASES)
+RADIAL_NAMES = ("A1", "A3", "B1", "B3")
 EXPLICIT_DEFAULT_MAX_STEPS = 100_000
 
 
@@ -73,6 +75,24 @@ def build_parser() -> argparse.ArgumentParser:
     lin.add_argument("--packing", type=Path, help="packing .npz (default: the shipped 65 mm packing)")
     lin.add_argument("--out", type=Path, help="run directory to create (default runs/<case>-<time>)")
     lin.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    rad = sub.add_parser("radial", help="movable-grain Huang cases of seed 004 §4.2 (YADE)")
+    rad.add_argument("--case", choices=RADIAL_NAMES, default="A1", help="A1, A3 (5 cP), B1, B3 (176 cP)")
+    rad.add_argument("--viscosity-ratio", type=positive("--viscosity-ratio"),
+                     help="M = eta_inv / eta_air; eta_inv = M x 0.018 cP")
+    rad.add_argument("--ca-star", type=positive("--ca-star"), help="modified capillary number Ca* (seed 004 Eq. 24)")
+    rad.add_argument("--one-way", action="store_true",
+                     help="sequential coupling: grains move, dV is left out of the pressure equation")
+    rad.add_argument("--dt", type=positive("--dt"), help="nominal flow step [s] (default per case, Table 4)")
+    rad.add_argument("--dem-cycles", type=positive("--dem-cycles"),
+                     help="DEM cycles per flow step (the paper: 2000); default: the stable DEM step")
+    rad.add_argument("--pv-tol", type=positive("--pv-tol"), help="P-V iteration relative tolerance (default 1e-3)")
+    rad.add_argument("--pv-max-iter", type=positive("--pv-max-iter"), help="P-V iteration cap (default 30)")
+    rad.add_argument("--t-max", type=positive("--t-max"), help="stop at this simulated time [s]")
+    rad.add_argument("--max-steps", type=positive("--max-steps"), help="stop after this many steps")
+    rad.add_argument("--packing", type=Path, help="packing .npz (default: the shipped Huang sample)")
+    rad.add_argument("--out", type=Path, help="run directory to create (default runs/<case>-<time>)")
+    rad.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
 
 
@@ -122,9 +142,7 @@ def run_linear(args) -> int:
 
     if args.packing is not None and not args.packing.is_file():
         raise InputError(f"--packing: no such file {str(args.packing)!r}")
-    out = args.out or Path("runs") / f"{args.case}-{time.strftime('%Y%m%d-%H%M%S')}"
-    if out.exists():
-        raise InputError(f"--out: {str(out)!r} already exists; choose a new run directory")
+    out = new_run_directory(args)
     case = make_case(args)
     sc = build_scenario(case, seed=args.seed, inlet=args.inlet, scheme=args.scheme, packing_path=args.packing)
     if args.max_steps is not None:
@@ -146,6 +164,54 @@ def run_linear(args) -> int:
     return 130 if rec.status == "interrupted" else 0
 
 
+def new_run_directory(args) -> Path:
+    out = args.out or Path("runs") / f"{args.case}-{time.strftime('%Y%m%d-%H%M%S')}"
+    if out.exists():
+        raise InputError(f"--out: {str(out)!r} already exists; choose a new run directory")
+    return out
+
+
+def run_radial(args) -> int:
+    from dataclasses import replace as replace_case
+
+    from .coupling.model import CoupledFlowModel
+    from .coupling.output import write_radial_run
+    from .coupling.radial import RADIAL_CASES, build_radial_scenario, start_grains
+    from .network.packing import DiscPacking
+
+    if args.packing is not None and not args.packing.is_file():
+        raise InputError(f"--packing: no such file {str(args.packing)!r}")
+    out = new_run_directory(args)
+    case = RADIAL_CASES[args.case]
+    if args.dt is not None:
+        case = replace_case(case, dt=args.dt)
+    packing = DiscPacking.load(args.packing) if args.packing else None
+    sc = build_radial_scenario(case, packing, ca_star=args.ca_star, viscosity_ratio=args.viscosity_ratio,
+                               one_way=args.one_way)
+    if args.dem_cycles is not None:
+        sc.coupling.dem_cycles_per_step = int(args.dem_cycles)
+    if args.pv_tol is not None:
+        sc.coupling.pv_rtol = args.pv_tol
+    if args.pv_max_iter is not None:
+        sc.coupling.pv_max_iter = int(args.pv_max_iter)
+    if args.t_max is not None:
+        sc.setup.t_max = args.t_max
+    if args.max_steps is not None:
+        sc.setup.max_steps = int(args.max_steps)
+    grains = start_grains(sc)
+    model = CoupledFlowModel(sc.net, sc.setup, grains, sc.coupling)
+    bar = None if args.quiet else FrontProgress(case.name, sc.setup)
+    state, rec = model.run(progress=bar)
+    if bar is not None:
+        bar.close(rec.status == "breakthrough")
+    summary = write_radial_run(out, sc, model, state, rec, argv=sys.argv[1:])
+    print(f"{case.name}: {rec.status} at t = {state.t:.4g} s after {rec.steps} steps; regime: {summary['regime']}, "
+          f"{summary['n_opened_contacts']} opened contacts, D_f = {summary['fractal_dimension']:.3f}, "
+          f"peak injection pressure {summary['peak_injection_pressure_pa']:.4g} Pa")
+    print(f"run directory: {out}")
+    return 130 if rec.status == "interrupted" else 0
+
+
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0].startswith("--") and argv[0] not in ("--help", "-h", "--version"):
@@ -155,6 +221,8 @@ def main(argv=None) -> int:
     try:
         if args.command == "linear":
             return run_linear(args)
+        if args.command == "radial":
+            return run_radial(args)
     except InputError as exc:
         print(f"{parser.prog}: error: {exc}", file=sys.stderr)
         return 2

@@ -10,7 +10,7 @@ matplotlib.use("Agg")
 warnings.filterwarnings("ignore", message="Unable to import Axes3D")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib.collections import PatchCollection  # noqa: E402
+from matplotlib.collections import LineCollection, PatchCollection  # noqa: E402
 from matplotlib.patches import Circle  # noqa: E402
 from matplotlib.tri import Triangulation  # noqa: E402
 
@@ -30,12 +30,16 @@ def _grains(ax, net: Network, radii):
     ax.add_collection(PatchCollection(circles, facecolor="none", edgecolor="0.6", linewidth=0.2))
 
 
-def plot_pattern(path, net: Network, saturation: np.ndarray, title: str, radii=None) -> None:
-    """Invaded domains drawn as polygons (union of their triangles), coloured by saturation."""
+def plot_pattern(path, net: Network, saturation: np.ndarray, title: str, radii=None, overlay=None) -> None:
+    """Invaded domains drawn as polygons (union of their triangles), coloured by saturation;
+    ``overlay``: segments (k, 2, 2) [m] drawn in red (opened contacts of a coupled run)."""
     tri, s = _domain_triangulation(net, saturation)
     fig, ax = plt.subplots(figsize=(6.4, 6))
     pc = ax.tripcolor(tri, facecolors=s, cmap="Blues", vmin=0, vmax=1, edgecolors="none")
     _grains(ax, net, radii)
+    if overlay is not None and len(overlay):
+        ax.add_collection(LineCollection(np.asarray(overlay) * 1e3, colors="tab:red", linewidths=1.2,
+                                         label=f"opened contacts ({len(overlay)})"))
     for ids, colour, label in ((net.inlet_domains, "tab:green", "inflow"), (net.outlet_domains, "tab:red", "outflow")):
         c = net.domain_centroid[ids] * 1e3
         ax.plot(c[:, 0], c[:, 1], ".", color=colour, ms=3, label=label)
@@ -65,6 +69,29 @@ def plot_pressure(path, net: Network, pressure: np.ndarray, times, p_in, title: 
     a1.set_ylabel("mean injection pressure [kPa]")
     a1.set_title(title, fontsize=9)
     a1.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def plot_force_chains(path, positions: np.ndarray, radii: np.ndarray, pairs: np.ndarray, forces: np.ndarray,
+                      title: str, fixed=None) -> None:
+    """Contact force network: a line between the centres of each contact, width and shade by force."""
+    fig, ax = plt.subplots(figsize=(6.4, 6))
+    circles = [Circle((x * 1e3, y * 1e3), r * 1e3) for (x, y), r in zip(positions, radii)]
+    face = np.where(fixed, "0.75", "none") if fixed is not None and len(fixed) else "none"
+    ax.add_collection(PatchCollection(circles, facecolor=face, edgecolor="0.7", linewidth=0.2))
+    if len(pairs):
+        scale = forces / max(forces.max(), 1e-300)
+        segments = positions[pairs] * 1e3
+        lc = LineCollection(segments, linewidths=0.3 + 2.5 * scale, cmap="inferno_r", array=forces)
+        ax.add_collection(lc)
+        fig.colorbar(lc, ax=ax, label="normal contact force [N per m]")
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("y [mm]")
+    ax.set_title(title, fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=130)
     plt.close(fig)

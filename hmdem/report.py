@@ -68,9 +68,16 @@ def summarize(sc, model, state, rec) -> dict:
     }
 
 
-def write_run(out: Path, sc, model, state, rec, seed: int, argv) -> dict:
-    """Write every file of the run directory into a temporary folder, then rename it to ``out``."""
+def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: dict | None = None,
+              extra_files=None, overlay=None, config_extra: dict | None = None) -> dict:
+    """Write every file of the run directory into a temporary folder, then rename it to ``out``.
+
+    Couplings add to the contract: ``summary_extra`` (keys added to or replacing the summary's),
+    ``extra_files(tmp)`` writes further files, ``overlay`` (k, 2, 2) segments drawn in red on
+    the pattern (e.g. opened contacts), ``config_extra`` more config.toml tables.
+    """
     summary = summarize(sc, model, state, rec)
+    summary.update(summary_extra or {})
     net = sc.net
     setup = {k: v for k, v in asdict(sc.setup).items() if k != "fluids"}
     config = {
@@ -81,6 +88,7 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv) -> dict:
                  "contact_gap": sc.case.contact_gap, "sigma_m": sc.sigma, "length_m": sc.length},
         "fluids": asdict(sc.setup.fluids),
         "solver": setup,
+        **(config_extra or {}),
     }
     with atomic_run_directory(out) as tmp:
         write_toml(tmp / "config.toml", config)
@@ -96,10 +104,12 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv) -> dict:
                             invasion_time=state.invasion_time, t=state.t)
         title = f"{sc.case.title}\nCa* = {sc.ca_star:.3g}, M = {sc.setup.fluids.viscosity_ratio:.3g}, t = {state.t:.4g} s, " \
                 f"{summary['regime']}, D_f = {summary['fractal_dimension']:.3f}"
-        plot_pattern(tmp / "pattern.png", net, state.saturation, title, sc.packing_radii)
+        plot_pattern(tmp / "pattern.png", net, state.saturation, title, sc.packing_radii, overlay)
         plot_pressure(tmp / "pressure.png", net, state.pressure, [r[0] for r in rec.rows], [r[2] for r in rec.rows],
                       f"{sc.case.name}: mean injection pressure")
         write_vtu(tmp / "domains.vtu", net, state)
+        if extra_files is not None:
+            extra_files(tmp)
     return summary
 
 

@@ -22,6 +22,10 @@ CMD = [sys.executable, "-m", "hmdem.hele_shaw"]
     (["linear", "--dt", "0"], "--dt"),
     (["linear", "--case", "nope"], "--case"),
     (["linear", "--seed", "-3"], "--seed"),
+    (["radial", "--case", "A2"], "--case"),
+    (["radial", "--viscosity-ratio", "-5"], "--viscosity-ratio"),
+    (["radial", "--ca-star", "nan"], "--ca-star"),
+    (["radial", "--dem-cycles", "0"], "--dem-cycles"),
 ])
 def test_bad_input_one_line_exit_2_nothing_written(tmp_path, args, name):
     out = tmp_path / "run"
@@ -130,3 +134,24 @@ def test_real_sigint_leaves_valid_partial_directory(tmp_path):
     assert summary["status"] == "interrupted" and summary["steps"] > 0
     assert np.load(out / "state.npz")["pressure"].shape == (summary["n_domains"],)
     assert (out / "domains.vtu").stat().st_size > 0
+
+
+@pytest.mark.yade
+def test_radial_run_directory_contract(tmp_path):
+    # a few B3 steps on the shipped Huang sample: the linear contract plus fractures.npz, the
+    # force-chain picture and the movable-grain summary keys (issue 3)
+    out = tmp_path / "b3"
+    assert main(["radial", "--case", "B3", "--max-steps", "12", "--out", str(out), "--quiet"]) == 0
+    names = {p.name for p in out.iterdir()}
+    assert {"config.toml", "summary.json", "timeseries.csv", "network.npz", "state.npz", "pattern.png",
+            "pressure.png", "domains.vtu", "fractures.npz", "force_chains.png"} <= names
+    summary = json.loads((out / "summary.json").read_text())
+    for key in ("n_opened_contacts", "peak_injection_pressure_pa", "regime", "mean_pv_iterations", "dem_cycles"):
+        assert key in summary
+    assert summary["regime"] in ("infiltration", "infiltration-dominated with fracturing", "fracturing-dominated")
+    assert summary["steps"] == 12 and summary["max_mass_balance_error"] < 1e-10
+    fractures = np.load(out / "fractures.npz")
+    assert fractures["opened"].sum() == summary["n_opened_contacts"]
+    assert fractures["positions"].shape == (1395, 2)
+    config = tomllib.loads((out / "config.toml").read_text())
+    assert config["coupling"]["one_way"] is False and config["aperture_law"]["residual_aperture"] == 7.53e-6

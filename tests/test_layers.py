@@ -31,3 +31,17 @@ def test_missing_yade_gives_one_clear_error():
                           env={"PATH": "/usr/bin:/bin", "HMDEM_YADE_PATH": "/nonexistent"})
     assert proc.returncode == 0, proc.stderr
     assert "make setup" in proc.stdout and "HMDEM_YADE_PATH" in proc.stdout
+
+
+def test_coupling_solver_core_does_not_import_yade():
+    # the coupled model reaches the DEM only through the GrainModel protocol (hmdem.dem is the adapter)
+    code = (
+        "import sys\n"
+        "import hmdem.coupling.model, hmdem.coupling.radial, hmdem.coupling.geometry, hmdem.coupling.output\n"
+        "from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario\n"
+        "sc = build_radial_scenario(RADIAL_CASES['A1'])\n"
+        "assert sc.net.n_pipes > 3000\n"
+        "assert not any(m == 'yade' or m.startswith('yade.') for m in sys.modules), 'YADE was imported'\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr

@@ -54,3 +54,19 @@ def test_shipped_packing_is_reproduced_by_its_command(tmp_path):
     new, shipped = load_packing(out), load_packing()
     np.testing.assert_array_equal(new.centres, shipped.centres)
     np.testing.assert_array_equal(new.contacts, shipped.contacts)
+
+
+@pytest.mark.yade
+def test_shipped_huang_sample_is_reproduced_by_its_command(tmp_path):
+    # `make huang-packing` (python -m hmdem.dem.compaction, seed 0) regenerates the shipped file
+    from hmdem.coupling.radial import default_huang_packing_path
+    from hmdem.dem.compaction import main
+    from hmdem.network.packing import DiscPacking
+
+    out = tmp_path / "h.npz"
+    assert main(["--out", str(out)]) == 0
+    new, shipped = DiscPacking.load(out), DiscPacking.load(default_huang_packing_path())
+    np.testing.assert_array_equal(new.centres, shipped.centres)
+    np.testing.assert_array_equal(new.fixed, shipped.fixed)
+    assert shipped.confining_stress == pytest.approx(0.14e6, rel=0.005)
+    assert len(shipped.radii) == 1395 and shipped.radii.min() >= 13e-6 and shipped.radii.max() <= 21.6e-6

@@ -39,6 +39,15 @@ class RadialCase:
     ca_star: float
     dt: float  # nominal flow step [s] (seed 004 Table 4)
     expected_regime: str  # the paper's label, for reference only
+    geometry: str = "radial"
+    mean_aperture: float = 7.53e-6  # a0: the Ca* aperture scale
+    aperture_spread: float = 0.0  # apertures come from the contact forces (Eq. 13), not drawn
+    contact_gap: float = 0.08  # as for the fixed-grain packings (decisions.md)
+
+    @property
+    def title(self) -> str:
+        return (f"Huang {self.name}: water-glycerol ({self.viscosity_inv / CP:g} cP) into air, "
+                f"movable grains")
 
 
 RADIAL_CASES = {
@@ -83,13 +92,17 @@ class RadialScenario:
     length: float
     ca_star: float
 
+    @property
+    def packing_radii(self) -> np.ndarray:
+        return self.packing.radii
+
 
 def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, ca_star: float | None = None,
                           viscosity_ratio: float | None = None, one_way: bool = False,
                           aperture_law: ApertureLaw | None = None) -> RadialScenario:
     """Network, flow set-up and coupling parameters of a radial case (no DEM yet, no YADE)."""
     pk = packing or DiscPacking.load(default_huang_packing_path())
-    net = radial_network(pk)
+    net = radial_network(pk, case.contact_gap)
     eta_inv = case.viscosity_inv if viscosity_ratio is None else viscosity_ratio * AIR_VISCOSITY
     fluids = huang_fluids(eta_inv)
     law = aperture_law or ApertureLaw()
@@ -112,3 +125,14 @@ def start_grains(sc: RadialScenario):
     sc.coupling.stable_dem_step = grains.timestep
     grains.run(SETTLE_CYCLES)
     return grains
+
+
+def classify_radial_regime(n_opened_contacts: int, fractal_dimension: float) -> str:
+    """Huang et al.'s three regimes from the run: no opened contact is infiltration; opened
+    contacts with a compact front (D_f >= 1.90, digest H1/H5) are infiltration-dominated with
+    fracturing; opened contacts with a fingered front are fracturing-dominated."""
+    if n_opened_contacts == 0:
+        return "infiltration"
+    if fractal_dimension >= 1.90:
+        return "infiltration-dominated with fracturing"
+    return "fracturing-dominated"

@@ -1,0 +1,59 @@
+"""Run directory of a coupled (movable-grain) run: the linear contract plus the fracture map,
+the contact force network and the micro-mechanical summary keys (issue 3)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..plots import plot_force_chains
+from ..report import pattern_fractal_dimension, write_run
+from .radial import classify_radial_regime
+
+
+def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
+    grains, net = model.grains, sc.net
+    positions = grains.positions()
+    initial_positions = sc.packing.centres.copy()
+    # draw and export the deformed sample
+    net.points = positions
+    net.domain_centroid = model.geometry.centroids(positions)
+    pairs, forces = grains.contact_forces()
+    opened = model.opened
+    g = net.pipe_grains
+    gap = np.linalg.norm(positions[g[:, 1]] - positions[g[:, 0]], axis=1) - grains.radii[g].sum(axis=1)
+    d_f = pattern_fractal_dimension(sc, state) if state.invaded.any() else float("nan")
+    cr = model.coupling_record
+    extra = {
+        "regime": classify_radial_regime(int(opened.sum()), d_f),
+        "n_opened_contacts": int(opened.sum()),
+        "n_initial_contacts": int(model.initially_closed.sum()),
+        "max_grain_displacement_m": float(np.linalg.norm(positions - initial_positions, axis=1).max()),
+        "mean_pv_iterations": float(np.mean(cr.pv_iterations)) if cr.pv_iterations else 0.0,
+        "max_pv_iterations": int(max(cr.pv_iterations)) if cr.pv_iterations else 0,
+        "unconverged_pv_steps": cr.unconverged_steps,
+        "dem_cycles": cr.dem_cycles,
+        "dem_cycles_per_step": cr.dem_cycles / max(rec.steps, 1),
+        "one_way": sc.coupling.one_way,
+        "sigma_m": sc.sigma,
+        "confining_stress_pa": sc.packing.confining_stress,
+    }
+
+    def files(tmp: Path) -> None:
+        np.savez_compressed(tmp / "fractures.npz", opened=opened, pipe_grains=g, gap=gap,
+                            aperture=net.pipe_aperture, initially_closed=model.initially_closed,
+                            positions=positions, initial_positions=initial_positions, radii=grains.radii,
+                            contact_pairs=pairs, contact_forces=forces)
+        plot_force_chains(tmp / "force_chains.png", positions, grains.radii, pairs, forces,
+                          f"{sc.case.name}: contact forces at t = {state.t:.4g} s "
+                          f"({int(opened.sum())} opened contacts in red on pattern.png)",
+                          fixed=sc.packing.fixed)
+
+    config = {"coupling": {k: v for k, v in vars(sc.coupling).items() if k != "aperture_law"},
+              "aperture_law": vars(sc.coupling.aperture_law),
+              "dem": {"timestep_s": grains.timestep, "stable_timestep_s": sc.coupling.stable_dem_step,
+                      "n_grains": len(grains.radii), "n_fixed": int(np.sum(sc.packing.fixed))}}
+    overlay = positions[g[opened]]
+    return write_run(out, sc, model, state, rec, seed=0, argv=argv, summary_extra=extra, extra_files=files,
+                     overlay=overlay, config_extra=config)
