@@ -209,7 +209,14 @@ def run_radial(args) -> int:
           f"{summary['n_opened_contacts']} opened contacts, D_f = {summary['fractal_dimension']:.3f}, "
           f"peak injection pressure {summary['peak_injection_pressure_pa']:.4g} Pa")
     print(f"run directory: {out}")
+    if rec.status == "diverged":
+        print(f"{parser_prog()}: {rec.message}", file=sys.stderr)
+        return 1
     return 130 if rec.status == "interrupted" else 0
+
+
+def parser_prog() -> str:
+    return "python -m hmdem.hele_shaw"
 
 
 def main(argv=None) -> int:

@@ -37,6 +37,7 @@ def summarize(sc, model, state, rec) -> dict:
     return {
         "case": sc.case.name,
         "status": rec.status,
+        "status_message": rec.message,
         "regime": regime,
         "fractal_dimension": d_f,
         "breakthrough_time_s": rec.breakthrough_time,

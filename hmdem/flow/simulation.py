@@ -22,6 +22,10 @@ from .pressure import PressureSolution, PressureSystem
 MAX_EQ18_PASSES = 30
 
 
+class SimulationDiverged(RuntimeError):
+    """A step could not be completed (e.g. a coupling iteration diverged); the run stops there."""
+
+
 @dataclass
 class FlowSetup:
     """Everything a run needs besides the network. SI units, 2D quantities per metre of depth."""
@@ -63,6 +67,7 @@ class RunRecord:
     outflow_volume: float = 0.0  # sum over steps of Q_out dt
     breakthrough_time: float = float("nan")
     status: str = "running"
+    message: str = ""  # why the run stopped, when not at breakthrough or a limit
     wall_time: float = 0.0
 
     def run_mass_balance_error(self, rate: float, t: float) -> float:
@@ -285,6 +290,9 @@ class FlowModel:
                     progress(self, state)
         except KeyboardInterrupt:
             rec.status = "interrupted"
+        except SimulationDiverged as exc:
+            rec.status = "diverged"
+            rec.message = str(exc)
         rec.wall_time = time.perf_counter() - wall0
         if rec.status == "breakthrough":
             rec.breakthrough_time = state.t
