@@ -24,7 +24,9 @@ def pattern_fractal_dimension(sc, state) -> float:
     return fractal_dimension(net, state.saturation >= 0.5, grain, size / 4)[0]
 
 
-def summarize(sc, model, state, rec) -> dict:
+def summarize(sc, model, state, rec, d_f: float | None = None) -> dict:
+    """The summary.json keys; ``d_f`` if already measured (a coupled run measures it on the
+    reference configuration)."""
     net, fluids = sc.net, sc.setup.fluids
     rows = rec.rows
     p_in = np.array([r[2] for r in rows]) if rows else np.zeros(1)
@@ -32,7 +34,8 @@ def summarize(sc, model, state, rec) -> dict:
     saturation = float(np.sum(state.saturation * volume) / np.sum(volume))
     entry = np.abs(fluids.entry_pressure(net.pipe_aperture[model.pipes]))
     two_phase = sc.setup.two_phase
-    d_f = pattern_fractal_dimension(sc, state) if two_phase and state.invaded.any() else float("nan")
+    if d_f is None:
+        d_f = pattern_fractal_dimension(sc, state) if two_phase and state.invaded.any() else float("nan")
     regime = classify_regime(d_f, float(np.median(p_in)), float(np.std(entry))) if two_phase else "single phase"
     return {
         "case": sc.case.name,
@@ -77,8 +80,9 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
     ``extra_files(tmp)`` writes further files, ``overlay`` (k, 2, 2) segments drawn in red on
     the pattern (e.g. opened contacts), ``config_extra`` more config.toml tables.
     """
-    summary = summarize(sc, model, state, rec)
-    summary.update(summary_extra or {})
+    extra = summary_extra or {}
+    summary = summarize(sc, model, state, rec, extra.get("fractal_dimension"))
+    summary.update(extra)
     net = sc.net
     setup = {k: v for k, v in asdict(sc.setup).items() if k != "fluids"}
     config = {

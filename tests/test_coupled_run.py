@@ -75,3 +75,20 @@ def test_one_way_model_ignores_the_volume_change(small_sample):
     assert set(model.coupling_record.pv_iterations) == {0}
     unbooked = abs(model.volume.sum() - v0.sum())
     assert unbooked > 1e-4 * sc.setup.rate * state.t
+
+
+def test_yade_batch_runs_the_radial_script(tmp_path):
+    # existing YADE users: yade-batch + readParamsFromTable drive the same run as the CLI
+    import json
+    import subprocess
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parent.parent / "yade_scripts" / "radial_injection.py"
+    table = tmp_path / "short.table"
+    table.write_text("description case oneWay maxSteps\ntwo_way 'B3' 0 2\none_way 'B3' 1 2\n")
+    proc = subprocess.run(["yade-batch", "--job-threads", "1", "-j", "2", "--log", str(tmp_path / "@.log"),
+                           str(table), str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stdout[-2000:]
+    for name, one_way in (("two_way", False), ("one_way", True)):
+        summary = json.loads((tmp_path / "runs" / "batch" / name / "summary.json").read_text())
+        assert summary["case"] == "B3" and summary["steps"] == 2 and summary["one_way"] is one_way

@@ -16,6 +16,8 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
     grains, net = model.grains, sc.net
     positions = grains.positions()
     initial_positions = sc.packing.centres.copy()
+    # D_f on the reference configuration: a rearranged sample can fold triangles over each other
+    d_f = pattern_fractal_dimension(sc, state) if state.invaded.any() else float("nan")
     # draw and export the deformed sample
     net.points = positions
     net.domain_centroid = model.geometry.centroids(positions)
@@ -23,10 +25,10 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
     opened = model.opened
     g = net.pipe_grains
     gap = np.linalg.norm(positions[g[:, 1]] - positions[g[:, 0]], axis=1) - grains.radii[g].sum(axis=1)
-    d_f = pattern_fractal_dimension(sc, state) if state.invaded.any() else float("nan")
     cr = model.coupling_record
     extra = {
         "regime": classify_radial_regime(int(opened.sum()), d_f),
+        "fractal_dimension": d_f,
         "n_opened_contacts": int(opened.sum()),
         "n_initial_contacts": int(model.initially_closed.sum()),
         "max_grain_displacement_m": float(np.linalg.norm(positions - initial_positions, axis=1).max()),

@@ -1,0 +1,39 @@
+"""Huang radial injection with movable grains (issue 3), from YADE's own launchers.
+
+    yade -n -x yade_scripts/radial_injection.py                 # A1 into runs/A1-<time>
+    yade-batch yade_scripts/huang.table yade_scripts/radial_injection.py
+
+Parameters (``readParamsFromTable``; defaults in brackets): case [A1], oneWay [0], maxSteps
+[0 = to breakthrough], dt [0 = the case's], out [runs/batch/<job description>, or a fresh
+runs/<case>-<time> outside a batch]. The run is exactly ``python -m hmdem.hele_shaw radial``
+with those flags; its run directory is the same. The yade launcher runs Debian's Python, so the
+repository root goes on sys.path first and the project venv's pure-Python packages (meshio,
+tqdm) last, behind Debian's numpy that YADE has already loaded.
+"""
+import sys
+from pathlib import Path
+
+# under `yade -x`, __file__ is the launcher; sys.argv[0] is this script
+ROOT = Path(sys.argv[0]).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+sys.path.extend(str(p) for p in sorted((ROOT / ".venv" / "lib").glob("python3*/site-packages")))
+
+from yade import O, utils  # noqa: E402
+
+utils.readParamsFromTable(case="A1", oneWay=0, maxSteps=0, dt=0.0, out="", noTableOk=True)
+from yade.params import table  # noqa: E402
+
+from hmdem.hele_shaw import main  # noqa: E402
+
+argv = ["radial", "--case", table.case, "--quiet"]
+if table.oneWay:
+    argv.append("--one-way")
+if table.maxSteps:
+    argv += ["--max-steps", str(table.maxSteps)]
+if table.dt:
+    argv += ["--dt", str(table.dt)]
+description = O.tags["description"] if "description" in O.tags.keys() else ""
+out = table.out or (f"runs/batch/{description}" if description else "")
+if out:
+    argv += ["--out", out]
+sys.exit(main(argv))
