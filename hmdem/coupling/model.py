@@ -9,8 +9,9 @@ resolves Eq. 6) with the grain geometry of t^n: that gives p_trial. Then, at tha
 2. dV_i = V_i(grains now) - V_i^n enters the pressure equation as -dV/dt and it is re-solved,
    giving p_calc;
 3. until |p_calc - p_trial| is below the tolerance in every domain, p_trial <- p_calc.
-   (The paper tests the inflow domain only; in the A1 run that let a pore away from the inlet
-   carry a 10x pressure error into the grain forces and the next step diverged.)
+   (The paper tests the inflow domain only; in A1 that let a pore away from the inlet carry a
+   10x pressure error into the grain forces and the run blew up at step 1,388. With the test
+   on every domain A1 gets to step 2,151 and then diverges: still open, see BENCHMARKS.md.)
 
 On acceptance the domain volumes and the pipe apertures (Eqs. 13-14, from the contact forces
 and gaps) are updated for the next step; the network topology stays fixed and a contact that
