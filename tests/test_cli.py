@@ -146,7 +146,8 @@ def test_radial_run_directory_contract(tmp_path):
     assert {"config.toml", "summary.json", "timeseries.csv", "network.npz", "state.npz", "pattern.png",
             "pressure.png", "domains.vtu", "fractures.npz", "force_chains.png"} <= names
     summary = json.loads((out / "summary.json").read_text())
-    for key in ("n_opened_contacts", "peak_injection_pressure_pa", "regime", "mean_pv_iterations", "dem_cycles"):
+    for key in ("n_opened_contacts", "peak_injection_pressure_pa", "regime", "mean_pv_iterations", "dem_cycles",
+                "lowest_path_resistance_gpa_s_per_m2", "dissipated_fraction"):
         assert key in summary
     assert summary["regime"] in ("infiltration", "infiltration-dominated with fracturing", "fracturing-dominated")
     assert summary["steps"] == 12 and summary["max_mass_balance_error"] < 1e-10

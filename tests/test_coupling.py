@@ -80,3 +80,28 @@ def test_u6_aperture_law_continuity_and_half_force():
     forces = np.linspace(0, 10 * f0, 50)
     assert np.all(np.diff(law(forces, np.zeros(50))) < 0)  # closing under load
     np.testing.assert_array_equal(law.opened(np.array([-1.0, 0.0, 1.0])), [True, True, False])
+
+
+def test_pipe_resistance_and_lowest_path_sum():
+    # R_s = 12 eta l / a^3 (inverse of Eq. 1); the lowest path sum picks the cheaper of two
+    # routes, and of two parallel pipes the smaller resistance (digest H8)
+    from hmdem.coupling.micromechanics import lowest_path_resistance, pipe_resistance
+    from hmdem.flow.fluids import FluidPair
+    from hmdem.network.network import Network
+
+    # domains 0 -> 1 -> 3 (two short pipes) and 0 -> 2 -> 3; plus a parallel pipe 0 -> 1
+    pipe_domains = np.array([[0, 1], [1, 3], [0, 2], [2, 3], [0, 1]])
+    aperture = np.array([2e-5, 2e-5, 1e-5, 1e-5, 0.5e-5])
+    length = np.full(5, 3e-5)
+    net = Network(np.zeros((4, 2)), np.ones(4), pipe_domains, length, aperture, np.zeros((5, 2), int))
+    fluids = FluidPair(5e-3, 1.8e-5, 2e9, 1.4e5, 0.063, 0.0)
+    saturation = np.array([1.0, 0.0, 0.0, 0.0])
+    pipes = np.arange(5)
+    r = pipe_resistance(net, fluids, saturation, pipes)
+    eta_01 = 0.5 * (5e-3 + 1.8e-5)
+    assert r[0] == pytest.approx(12 * eta_01 * 3e-5 / 8e-15, rel=1e-12)
+    total = lowest_path_resistance(net, pipes, r, np.array([0]), np.array([3]))
+    # the wide route through domain 1 wins; had the narrow parallel pipe been added to the
+    # 0-1 link (r[4] = 64 r[0]), the route through domain 2 would have
+    assert r[0] + r[1] < r[2] + r[3] < r[0] + r[4] + r[1]
+    assert total == pytest.approx(r[0] + r[1], rel=1e-12)

@@ -9,7 +9,10 @@ import numpy as np
 
 from ..plots import plot_force_chains
 from ..report import pattern_fractal_dimension, write_run
+from .micromechanics import lowest_path_resistance, pipe_resistance
 from .radial import classify_radial_regime
+
+GPA = 1e9
 
 
 def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
@@ -26,11 +29,17 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
     g = net.pipe_grains
     gap = np.linalg.norm(positions[g[:, 1]] - positions[g[:, 0]], axis=1) - grains.radii[g].sum(axis=1)
     cr = model.coupling_record
+    # R_s on the final apertures and saturations (Figs. 15-16 report them in GPa s / m^2)
+    resistance = pipe_resistance(net, sc.setup.fluids, state.saturation, model.pipes)
+    path = lowest_path_resistance(net, model.pipes, resistance, net.inlet_domains, net.outlet_domains)
     extra = {
         "regime": classify_radial_regime(int(opened.sum()), d_f),
         "fractal_dimension": d_f,
         "n_opened_contacts": int(opened.sum()),
         "n_initial_contacts": int(model.initially_closed.sum()),
+        "mean_pipe_resistance_gpa_s_per_m2": float(np.mean(resistance)) / GPA,
+        "lowest_path_resistance_gpa_s_per_m2": path / GPA,
+        "dissipated_fraction": rec.dissipated_energy / rec.injection_energy if rec.injection_energy else float("nan"),
         "max_grain_displacement_m": float(np.linalg.norm(positions - initial_positions, axis=1).max()),
         "mean_pv_iterations": float(np.mean(cr.pv_iterations)) if cr.pv_iterations else 0.0,
         "max_pv_iterations": int(max(cr.pv_iterations)) if cr.pv_iterations else 0,
