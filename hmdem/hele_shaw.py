@@ -88,6 +88,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="DEM cycles per flow step (the paper: 2000); default: the stable DEM step")
     rad.add_argument("--pv-tol", type=positive("--pv-tol"), help="P-V iteration relative tolerance (default 1e-3)")
     rad.add_argument("--pv-max-iter", type=positive("--pv-max-iter"), help="P-V iteration cap (default 30)")
+    rad.add_argument("--pv-rewind", action="store_true",
+                     help="rewind the DEM before each P-V iteration and relax (Aitken); default: continue it")
     rad.add_argument("--t-max", type=positive("--t-max"), help="stop at this simulated time [s]")
     rad.add_argument("--max-steps", type=positive("--max-steps"), help="stop after this many steps")
     rad.add_argument("--packing", type=Path, help="packing .npz (default: the shipped Huang sample)")
@@ -194,6 +196,7 @@ def run_radial(args) -> int:
         sc.coupling.pv_rtol = args.pv_tol
     if args.pv_max_iter is not None:
         sc.coupling.pv_max_iter = int(args.pv_max_iter)
+    sc.coupling.pv_rewind = args.pv_rewind
     if args.t_max is not None:
         sc.setup.t_max = args.t_max
     if args.max_steps is not None:

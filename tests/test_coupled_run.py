@@ -92,3 +92,17 @@ def test_yade_batch_runs_the_radial_script(tmp_path):
     for name, one_way in (("two_way", False), ("one_way", True)):
         summary = json.loads((tmp_path / "runs" / "batch" / name / "summary.json").read_text())
         assert summary["case"] == "B3" and summary["steps"] == 2 and summary["one_way"] is one_way
+
+
+def test_rewound_pv_iteration_converges_and_conserves_mass(small_sample):
+    # opt-in variant: the DEM is rewound to t^n before each iteration after the first and
+    # p_trial is relaxed with Aitken's factor
+    sc = build_radial_scenario(RADIAL_CASES["A3"], packing=small_sample)
+    sc.coupling.pv_rewind = True
+    grains = start_grains(sc)
+    sc.setup.max_steps = 60
+    model = CoupledFlowModel(sc.net, sc.setup, grains, sc.coupling)
+    state, rec = model.run()
+    assert rec.steps == 60 and model.coupling_record.unconverged_steps == 0
+    assert max(model.coupling_record.pv_iterations) >= 2
+    assert rec.max_mass_balance_error < 1e-10

@@ -47,6 +47,8 @@ class GrainModel(Protocol):
     timestep: float
 
     def positions(self) -> np.ndarray: ...
+    def save_state(self) -> None: ...
+    def restore_state(self) -> None: ...
     def set_external_forces(self, forces: np.ndarray) -> None: ...
     def run(self, cycles: int) -> None: ...
     def normal_forces(self, pairs: np.ndarray) -> np.ndarray: ...
@@ -63,6 +65,9 @@ class CouplingSetup:
     dem_cycles_per_step: int | None = None  # fixed count (the paper: 2000); None: stable DEM step
     stable_dem_step: float = 0.0  # DEM stability step [s], used when dem_cycles_per_step is None
     one_way: bool = False
+    # rewind the DEM to t^n before every P-V iteration after the first, and relax p_trial
+    # with Aitken's factor: each iteration is then a function evaluation of one fixed point
+    pv_rewind: bool = False
 
 
 @dataclass
@@ -117,6 +122,8 @@ class CoupledFlowModel(FlowModel):
     def implicit_step(self, state, blocked_guess):
         self.volume_change[:] = 0.0
         sol, fill, dt, limiter = super().implicit_step(state, blocked_guess)
+        if self.coupling.pv_rewind:
+            self.grains.save_state()
         positions = self.move_grains(sol.pressure, dt)
         if self.coupling.one_way:
             self.coupling_record.pv_iterations.append(0)
@@ -124,6 +131,7 @@ class CoupledFlowModel(FlowModel):
         g, orient, pc = self.pipe_properties(state)
         c = self.coupling
         p_trial = sol.pressure
+        omega, r_prev = 1.0, None
         for iteration in range(1, c.pv_max_iter + 1):
             self.volume_change[:] = self.geometry.volumes(positions) - self.reference_volume
             calc, fill = self._trial(state, dt, g, orient, pc, sol.blocked)
@@ -132,11 +140,21 @@ class CoupledFlowModel(FlowModel):
             if not np.isfinite(mismatch).all() or mismatch.max() > DIVERGED * scale:
                 raise SimulationDiverged(f"pressure-volume iteration diverged at t = {state.t:.6g} s "
                                          f"(step {self.record.steps + 1}, iteration {iteration}): pressure "
-                                         f"mismatch {mismatch.max():.3g} Pa; try a smaller --dt")
+                                         f"mismatch {mismatch.max():.3g} Pa")
             sol = calc
             if np.all(mismatch <= c.pv_rtol * np.abs(calc.pressure).max() + c.pv_atol):
                 break
-            p_trial = calc.pressure
+            if c.pv_rewind:
+                r = calc.pressure - p_trial
+                if r_prev is None:
+                    omega = 0.5
+                else:  # Aitken's dynamic relaxation (Kuettler & Wall 2008)
+                    dr = r - r_prev
+                    omega = float(np.clip(-omega * (r_prev @ dr) / max(dr @ dr, 1e-300), 1e-4, 1.0))
+                p_trial, r_prev = p_trial + omega * r, r
+                self.grains.restore_state()
+            else:
+                p_trial = calc.pressure
             positions = self.move_grains(p_trial, dt)
         else:
             self.coupling_record.unconverged_steps += 1

@@ -87,6 +87,14 @@ class DiscAssembly:
         for i, (fx, fy) in zip(self.ids, np.asarray(forces, float)):
             set_force(i, Vector3(fx, fy, 0.0))
 
+    def save_state(self) -> None:
+        """Keep the whole scene (positions, velocities, contact history) in memory (~40 ms)."""
+        self._O.saveTmp("hmdem-pv")
+
+    def restore_state(self) -> None:
+        """Return to the scene kept by :meth:`save_state` (~30 ms)."""
+        self._O.loadTmp("hmdem-pv")
+
     def run(self, cycles: int) -> None:
         """Advance the DEM by ``cycles`` steps of :attr:`timestep`."""
         run_cycles(self._O, cycles)
