@@ -17,6 +17,7 @@ from pathlib import Path
 from . import __version__
 from .cases import CASES
 
+PROG = "python -m hmdem.hele_shaw"
 CASE_NAMES = tuple(CASES)
 RADIAL_NAMES = ("A1", "A3", "B1", "B3")
 EXPLICIT_DEFAULT_MAX_STEPS = 100_000
@@ -54,7 +55,7 @@ def non_negative_int(text):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="python -m hmdem.hele_shaw", description=__doc__.split("\n")[0])
+    parser = _Parser(prog=PROG, description=__doc__.split("\n")[0])
     parser.add_argument("--version", action="version", version=__version__)
     sub = parser.add_subparsers(dest="command", parser_class=_Parser)
     lin = sub.add_parser("linear", help="fixed-grain cases of seed 004 §4.1 and App. D")
@@ -70,11 +71,7 @@ def build_parser() -> argparse.ArgumentParser:
     lin.add_argument("--scheme", choices=("implicit", "explicit"), default="implicit")
     lin.add_argument("--inlet", choices=("manifold", "split"), default="manifold",
                      help="manifold: inflow domains share one pressure (default); split: Q/N_in each")
-    lin.add_argument("--t-max", type=positive("--t-max"), help="stop at this simulated time [s]")
-    lin.add_argument("--max-steps", type=positive("--max-steps"), help="stop after this many steps")
-    lin.add_argument("--packing", type=Path, help="packing .npz (default: the shipped 65 mm packing)")
-    lin.add_argument("--out", type=Path, help="run directory to create (default runs/<case>-<time>)")
-    lin.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_run_options(lin, "the shipped 65 mm packing")
 
     rad = sub.add_parser("radial", help="movable-grain Huang cases of seed 004 §4.2 (YADE)")
     rad.add_argument("--case", choices=RADIAL_NAMES, default="A1", help="A1, A3 (5 cP), B1, B3 (176 cP)")
@@ -90,12 +87,17 @@ def build_parser() -> argparse.ArgumentParser:
     rad.add_argument("--pv-max-iter", type=positive("--pv-max-iter"), help="P-V iteration cap (default 30)")
     rad.add_argument("--pv-rewind", action="store_true",
                      help="rewind the DEM before each P-V iteration and relax (Aitken); default: continue it")
-    rad.add_argument("--t-max", type=positive("--t-max"), help="stop at this simulated time [s]")
-    rad.add_argument("--max-steps", type=positive("--max-steps"), help="stop after this many steps")
-    rad.add_argument("--packing", type=Path, help="packing .npz (default: the shipped Huang sample)")
-    rad.add_argument("--out", type=Path, help="run directory to create (default runs/<case>-<time>)")
-    rad.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_run_options(rad, "the shipped Huang sample")
     return parser
+
+
+def add_run_options(sub: argparse.ArgumentParser, default_packing: str) -> None:
+    """Stopping, input and output flags shared by the linear and radial commands."""
+    sub.add_argument("--t-max", type=positive("--t-max"), help="stop at this simulated time [s]")
+    sub.add_argument("--max-steps", type=positive("--max-steps"), help="stop after this many steps")
+    sub.add_argument("--packing", type=Path, help=f"packing .npz (default: {default_packing})")
+    sub.add_argument("--out", type=Path, help="run directory to create (default runs/<case>-<time>)")
+    sub.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def make_case(args):
@@ -213,13 +215,9 @@ def run_radial(args) -> int:
           f"peak injection pressure {summary['peak_injection_pressure_pa']:.4g} Pa")
     print(f"run directory: {out}")
     if rec.status == "diverged":
-        print(f"{parser_prog()}: {rec.message}", file=sys.stderr)
+        print(f"{PROG}: {rec.message}", file=sys.stderr)
         return 1
     return 130 if rec.status == "interrupted" else 0
-
-
-def parser_prog() -> str:
-    return "python -m hmdem.hele_shaw"
 
 
 def main(argv=None) -> int:

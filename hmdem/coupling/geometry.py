@@ -19,6 +19,11 @@ def signed_triangle_areas(points: np.ndarray, triangles: np.ndarray) -> np.ndarr
     return 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1]))
 
 
+def contact_gaps(points: np.ndarray, radii: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """d - r1 - r2 of grain pairs (k, 2): negative when they overlap (Eq. 14's gap)."""
+    return np.linalg.norm(points[pairs[:, 1]] - points[pairs[:, 0]], axis=1) - radii[pairs].sum(axis=1)
+
+
 class DomainGeometry:
     """Volumes and centroids of a network's domains for any grain positions."""
 

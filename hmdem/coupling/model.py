@@ -34,7 +34,7 @@ from ..flow.grain_forces import grain_pressure_forces
 from ..flow.simulation import FlowModel, FlowSetup, SimulationDiverged
 from ..network.network import Network
 from .apertures import ApertureLaw
-from .geometry import DomainGeometry
+from .geometry import DomainGeometry, contact_gaps
 
 
 DIVERGED = 1e3  # a P-V mismatch this many times the step's pressure scale is divergence
@@ -86,11 +86,12 @@ class CoupledFlowModel(FlowModel):
         self.geometry = DomainGeometry(net)
         self.coupling_record = CouplingRecord()
         self.contact_pairs = net.pipe_grains
-        self.reference_volume = self.geometry.volumes(grains.positions())
+        self.positions = grains.positions()  # grain centres now (read from the DEM after each run)
+        self.reference_volume = self.geometry.volumes(self.positions)
         self.volume[:] = self.reference_volume
         self.initially_closed = grains.normal_forces(self.contact_pairs) > 0.0
         self.opened = np.zeros(net.n_pipes, bool)
-        self._update_apertures(grains.positions())
+        self._update_apertures()
 
     # ---- grains ----------------------------------------------------------------------------
     def dem_cycles(self, dt: float) -> int:
@@ -103,18 +104,19 @@ class CoupledFlowModel(FlowModel):
     def move_grains(self, pressure: np.ndarray, dt: float) -> np.ndarray:
         """Apply the Eq. 8 forces of ``pressure`` and advance the DEM by dt; new positions."""
         grains = self.grains
-        forces = grain_pressure_forces(self.net, grains.radii, pressure, positions=grains.positions())
+        forces = grain_pressure_forces(self.net, grains.radii, pressure, positions=self.positions)
         grains.set_external_forces(forces)
         cycles = self.dem_cycles(dt)
         grains.timestep = dt / cycles
         grains.run(cycles)
         self.coupling_record.dem_cycles += cycles
-        return grains.positions()
+        self.positions = grains.positions()
+        return self.positions
 
-    def _update_apertures(self, positions: np.ndarray) -> None:
+    def _update_apertures(self) -> None:
         g = self.contact_pairs
         force = self.grains.normal_forces(g)
-        gap = np.linalg.norm(positions[g[:, 1]] - positions[g[:, 0]], axis=1) - self.grains.radii[g].sum(axis=1)
+        gap = contact_gaps(self.positions, self.grains.radii, g)
         self.net.pipe_aperture[:] = self.coupling.aperture_law(force, gap)
         self.opened |= self.initially_closed & self.coupling.aperture_law.opened(force)
 
@@ -122,6 +124,7 @@ class CoupledFlowModel(FlowModel):
     def implicit_step(self, state, blocked_guess):
         self.volume_change[:] = 0.0
         sol, fill, dt, limiter = super().implicit_step(state, blocked_guess)
+        start_positions = self.positions
         if self.coupling.pv_rewind:
             self.grains.save_state()
         positions = self.move_grains(sol.pressure, dt)
@@ -153,6 +156,7 @@ class CoupledFlowModel(FlowModel):
                     omega = float(np.clip(-omega * (r_prev @ dr) / max(dr @ dr, 1e-300), 1e-4, 1.0))
                 p_trial, r_prev = p_trial + omega * r, r
                 self.grains.restore_state()
+                self.positions = start_positions
             else:
                 p_trial = calc.pressure
             positions = self.move_grains(p_trial, dt)
@@ -163,12 +167,11 @@ class CoupledFlowModel(FlowModel):
 
     def _accept(self, state, sol, fill, dt, limiter):
         super()._accept(state, sol, fill, dt, limiter)
-        positions = self.grains.positions()
-        volume = self.geometry.volumes(positions)
+        volume = self.geometry.volumes(self.positions)
         # saturation is a volume fraction: the invading volume is kept as the domain deforms
         invading = state.saturation * self.volume
         state.saturation = np.where(state.invaded, 1.0, np.clip(invading / volume, 0.0, 1.0))
         self.volume[:] = volume
         self.reference_volume = volume
         self.volume_change[:] = 0.0
-        self._update_apertures(positions)
+        self._update_apertures()

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..plots import plot_force_chains
 from ..report import pattern_fractal_dimension, write_run
+from .geometry import contact_gaps
 from .micromechanics import lowest_path_resistance, pipe_resistance
 from .radial import classify_radial_regime
 
@@ -17,7 +18,7 @@ GPA = 1e9
 
 def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
     grains, net = model.grains, sc.net
-    positions = grains.positions()
+    positions = model.positions
     initial_positions = sc.packing.centres.copy()
     # D_f on the reference configuration: a rearranged sample can fold triangles over each other
     d_f = pattern_fractal_dimension(sc, state) if state.invaded.any() else float("nan")
@@ -27,7 +28,7 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
     pairs, forces = grains.contact_forces()
     opened = model.opened
     g = net.pipe_grains
-    gap = np.linalg.norm(positions[g[:, 1]] - positions[g[:, 0]], axis=1) - grains.radii[g].sum(axis=1)
+    gap = contact_gaps(positions, grains.radii, g)
     cr = model.coupling_record
     # R_s on the final apertures and saturations (Figs. 15-16 report them in GPa s / m^2)
     resistance = pipe_resistance(net, sc.setup.fluids, state.saturation, model.pipes)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..yade_env import import_yade
-from .discs import add_disc, disc_material
+from .discs import add_discs, disc_engines
 
 
 def run_cycles(O, cycles: int) -> None:
@@ -32,28 +32,17 @@ class DiscAssembly:
                  fixed: np.ndarray | None = None, timestep_safety: float = 0.5):
         import_yade()
         from yade import O, utils
-        from yade.wrapper import (Bo1_Sphere_Aabb, ForceResetter, Ig2_Sphere_Sphere_ScGeom, InsertionSortCollider,
-                                  InteractionLoop, Ip2_FrictMat_FrictMat_FrictPhys,
-                                  Law2_ScGeom_FrictPhys_CundallStrack, NewtonIntegrator)
+
 
         self._O = O
         O.reset()
         self.radii = np.asarray(radii, float)
-        self.ids = []
-        for (x, y), r in zip(np.asarray(centres, float), self.radii):  # scene set-up, once
-            mat = O.materials.append(disc_material(r, k_n, ks_over_kn, friction, density))
-            self.ids.append(add_disc(x, y, r, mat))
+        self.ids = add_discs(centres, self.radii, k_n, ks_over_kn, friction, density)
         self.fixed = np.zeros(len(self.ids), bool) if fixed is None else np.asarray(fixed, bool)
         for i in np.flatnonzero(self.fixed):
             O.bodies[self.ids[i]].state.blockedDOFs = "xyzXYZ"
         # contacts that exist now (touching within round-off) must be detected on the first step
-        O.engines = [
-            ForceResetter(),
-            InsertionSortCollider([Bo1_Sphere_Aabb(aabbEnlargeFactor=1.0 + 1e-6)]),
-            InteractionLoop([Ig2_Sphere_Sphere_ScGeom(interactionDetectionFactor=1.0 + 1e-6)],
-                            [Ip2_FrictMat_FrictMat_FrictPhys()], [Law2_ScGeom_FrictPhys_CundallStrack()]),
-            NewtonIntegrator(damping=damping),
-        ]
+        O.engines = disc_engines(walls=False, damping=damping, detection_factor=1.0 + 1e-6)
         O.dt = timestep_safety * utils.PWaveTimeStep()
         self.k_n = k_n
         self._index = {b: k for k, b in enumerate(self.ids)}
@@ -112,15 +101,19 @@ class DiscAssembly:
     def normal_forces(self, pairs: np.ndarray) -> np.ndarray:
         """Compressive normal contact force per grain pair (k, 2) [N per m]; 0 where detached."""
         found, force = self.contact_forces()
+        out = np.zeros(len(pairs))
+        if len(found) == 0:
+            return out
         n = len(self.ids)
         keys = found[:, 0].astype(np.int64) * n + found[:, 1]
+        order = np.argsort(keys)
+        keys, force = keys[order], force[order]
         pairs = np.sort(np.asarray(pairs, int), axis=1)
         wanted = pairs[:, 0].astype(np.int64) * n + pairs[:, 1]
-        order = np.argsort(keys)
-        slot = np.searchsorted(keys[order], wanted)
-        slot = np.minimum(slot, max(len(keys) - 1, 0))
-        hit = (len(keys) > 0) & (keys[order][slot] == wanted) if len(keys) else np.zeros(len(wanted), bool)
-        return np.where(hit, force[order][slot] if len(keys) else 0.0, 0.0)
+        slot = np.minimum(np.searchsorted(keys, wanted), len(keys) - 1)
+        hit = keys[slot] == wanted
+        out[hit] = force[slot[hit]]
+        return out
 
     def masses(self) -> np.ndarray:
         bodies = self._O.bodies

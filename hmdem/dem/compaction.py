@@ -15,7 +15,7 @@ import numpy as np
 from ..network.packing import DiscPacking
 from ..yade_env import import_yade
 from .assembly import run_cycles
-from .discs import add_disc, disc_contacts, disc_material, disc_state
+from .discs import add_discs, disc_contacts, disc_engines, disc_state
 from .packing import random_seed_positions
 
 UNBALANCED_FORCE = 1e-3
@@ -36,10 +36,7 @@ def compact_sample(n: int = 1395, size: float = 1.25e-3, r_min: float = 13.0e-6,
     import_yade()
     from yade import O, utils
     from yade.minieigenHP import Vector3
-    from yade.wrapper import (Bo1_Sphere_Aabb, Bo1_Wall_Aabb, ForceResetter, FrictMat, Ig2_Sphere_Sphere_ScGeom,
-                              Ig2_Wall_Sphere_ScGeom, InsertionSortCollider, InteractionLoop,
-                              Ip2_FrictMat_FrictMat_FrictPhys, Law2_ScGeom_FrictPhys_CundallStrack,
-                              NewtonIntegrator)
+    from yade.wrapper import FrictMat
 
     rng = np.random.default_rng(seed)
     radii = rng.uniform(r_min, r_max, n)
@@ -54,17 +51,8 @@ def compact_sample(n: int = 1395, size: float = 1.25e-3, r_min: float = 13.0e-6,
         origin = [0.0, 0.0, 0.0]
         origin[axis] = 0.0 if side < 0 else box0
         walls.append(O.bodies.append(utils.wall(tuple(origin), axis=axis, sense=-side, material=wall_mat)))
-    ids = []
-    for k in range(n):  # scene set-up, once
-        mat = O.materials.append(disc_material(radii[k], k_n, 1.0, 0.0, density))
-        ids.append(add_disc(pos[k, 0], pos[k, 1], shrink * radii[k], mat))
-    O.engines = [
-        ForceResetter(),
-        InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb()]),
-        InteractionLoop([Ig2_Sphere_Sphere_ScGeom(), Ig2_Wall_Sphere_ScGeom()],
-                        [Ip2_FrictMat_FrictMat_FrictPhys()], [Law2_ScGeom_FrictPhys_CundallStrack()]),
-        NewtonIntegrator(damping=0.7),
-    ]
+    ids = add_discs(pos, radii, k_n, 1.0, 0.0, density, size_factor=shrink)
+    O.engines = disc_engines(walls=True)
     O.dt = 0.5 * utils.PWaveTimeStep()
     stages = 40
     for _ in range(stages):

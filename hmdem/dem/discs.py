@@ -65,3 +65,41 @@ def disc_contacts(ids: list[int]) -> np.ndarray:
         if i.isReal and i.id1 in index and i.id2 in index
     ]
     return np.sort(np.array(pairs, dtype=int).reshape(-1, 2), axis=1)
+
+
+def add_discs(centres: np.ndarray, radii: np.ndarray, k_n: float, ks_over_kn: float, friction: float,
+              density: float, size_factor: float = 1.0) -> list[int]:
+    """Append one disc per centre, each with its own disc-equivalent material; their ids.
+
+    ``size_factor`` shrinks the bodies (packings are seeded small and grown); the materials are
+    those of the final radii."""
+    import_yade()
+    from yade import O
+
+    ids = []
+    for (x, y), r in zip(np.asarray(centres, float), np.asarray(radii, float)):  # scene set-up, once
+        mat = O.materials.append(disc_material(r, k_n, ks_over_kn, friction, density))
+        ids.append(add_disc(x, y, size_factor * r, mat))
+    return ids
+
+
+def disc_engines(walls: bool, damping: float = 0.7, detection_factor: float | None = None) -> list:
+    """The engine list of a disc scene: collider, sphere(-wall) geometry, the linear Cundall-Strack
+    contact with Coulomb friction (seed 004 Eqs. 9-10) and local damping. ``detection_factor``
+    (> 1) also catches pairs that touch only to round-off on the first step."""
+    import_yade()
+    from yade.wrapper import (Bo1_Sphere_Aabb, Bo1_Wall_Aabb, ForceResetter, Ig2_Sphere_Sphere_ScGeom,
+                              Ig2_Wall_Sphere_ScGeom, InsertionSortCollider, InteractionLoop,
+                              Ip2_FrictMat_FrictMat_FrictPhys, Law2_ScGeom_FrictPhys_CundallStrack,
+                              NewtonIntegrator)
+
+    enlarge = {} if detection_factor is None else {"aabbEnlargeFactor": detection_factor}
+    detect = {} if detection_factor is None else {"interactionDetectionFactor": detection_factor}
+    bounds = [Bo1_Sphere_Aabb(**enlarge)] + ([Bo1_Wall_Aabb()] if walls else [])
+    geometry = [Ig2_Sphere_Sphere_ScGeom(**detect)] + ([Ig2_Wall_Sphere_ScGeom()] if walls else [])
+    return [
+        ForceResetter(),
+        InsertionSortCollider(bounds),
+        InteractionLoop(geometry, [Ip2_FrictMat_FrictMat_FrictPhys()], [Law2_ScGeom_FrictPhys_CundallStrack()]),
+        NewtonIntegrator(damping=damping),
+    ]

@@ -13,7 +13,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..network.packing import DiscPacking
-from .discs import add_disc, disc_contacts, disc_material, disc_state
+from .discs import add_discs, disc_contacts, disc_engines, disc_state
 
 
 def target_radii(n: int, mean_radius: float, spread: float, porosity: float, box, rng) -> np.ndarray:
@@ -63,10 +63,7 @@ def generate_packing(
 
     import_yade()
     from yade import O, utils
-    from yade.wrapper import (Bo1_Sphere_Aabb, Bo1_Wall_Aabb, ForceResetter, FrictMat, Ig2_Sphere_Sphere_ScGeom,
-                              Ig2_Wall_Sphere_ScGeom, InsertionSortCollider, InteractionLoop,
-                              Ip2_FrictMat_FrictMat_FrictPhys, Law2_ScGeom_FrictPhys_CundallStrack,
-                              NewtonIntegrator)
+    from yade.wrapper import FrictMat
 
     rng = np.random.default_rng(seed)
     radii = target_radii(n, mean_radius, spread, porosity, box, rng)
@@ -77,17 +74,8 @@ def generate_packing(
     wall_mat = O.materials.append(FrictMat(young=k_n / mean_radius, poisson=1.0, frictionAngle=0.0, density=density))
     for origin, axis in (((0, 0, 0), 0), ((box[0], 0, 0), 0), ((0, 0, 0), 1), ((0, box[1], 0), 1)):
         O.bodies.append(utils.wall(origin, axis=axis, material=wall_mat))
-    ids = []
-    for k in range(n):
-        mat = O.materials.append(disc_material(radii[k], k_n, 1.0, 0.0, density))
-        ids.append(add_disc(pos[k, 0], pos[k, 1], shrink * radii[k], mat))
-    O.engines = [
-        ForceResetter(),
-        InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb()]),
-        InteractionLoop([Ig2_Sphere_Sphere_ScGeom(), Ig2_Wall_Sphere_ScGeom()],
-                        [Ip2_FrictMat_FrictMat_FrictPhys()], [Law2_ScGeom_FrictPhys_CundallStrack()]),
-        NewtonIntegrator(damping=0.7),
-    ]
+    ids = add_discs(pos, radii, k_n, 1.0, 0.0, density, size_factor=shrink)
+    O.engines = disc_engines(walls=True)
     O.dt = 0.5 * utils.PWaveTimeStep()
     factor = (1.0 / shrink) ** (1.0 / growth_stages)
     for _ in range(growth_stages):

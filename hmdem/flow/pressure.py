@@ -84,15 +84,11 @@ class PressureSystem:
         values = np.concatenate([storage_node, g_open[self.va], g_open[self.vb], -g_open[self.vab], -g_open[self.vab]])
         return self.pattern.matrix(values)
 
-    def pipe_source_to_nodes(self, s: np.ndarray) -> np.ndarray:
-        """Row contributions of a pipe source s (flux a -> b held fixed): row a gets -s, row b +s."""
+    def pipe_source_to_nodes(self, s: np.ndarray, sign_a: float = -1.0) -> np.ndarray:
+        """Row contributions of a pipe source s (flux a -> b held fixed): row a gets -s, row b +s.
+        ``sign_a=+1`` sums s at both ends instead (the size of the terms in a row)."""
         n = self.n_unknowns
-        return np.bincount(self.nb[self.vb], s[self.vb], n) - np.bincount(self.na[self.va], s[self.va], n)
-
-    def pipe_magnitude_to_nodes(self, s: np.ndarray) -> np.ndarray:
-        """sum of s over the pipes at each unknown (both ends counted positive)."""
-        n = self.n_unknowns
-        return np.bincount(self.nb[self.vb], s[self.vb], n) + np.bincount(self.na[self.va], s[self.va], n)
+        return np.bincount(self.nb[self.vb], s[self.vb], n) + sign_a * np.bincount(self.na[self.va], s[self.va], n)
 
     def residual(self, storage_node, source_node, p_old, g_open, orient, entry_pressure):
         """r(x) = source - storage x - sum_j q_ij(p^n + x) in extended precision: the mass defect
@@ -173,7 +169,7 @@ class PressureSystem:
             # B - A p^n from the old flux of each pipe, G (p_a - p_b + orient p_c)
             old_flux = g_open * (dp_old + orient * entry_pressure)
             B = source_node + self.pipe_source_to_nodes(old_flux)
-            B_size = np.abs(source_node) + self.pipe_magnitude_to_nodes(np.abs(old_flux))
+            B_size = np.abs(source_node) + self.pipe_source_to_nodes(np.abs(old_flux), sign_a=1.0)
             residual = self.residual(storage_node, source_node, p_old, g_open, orient, entry_pressure)
             increment = self.domain_values(self.solver.solve(A, B, residual=residual, b_size=B_size))
             p = p_old + increment
