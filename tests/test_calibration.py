@@ -1,0 +1,299 @@
+"""Calibration tests of the Huang sample (seed 004 §4.2): network Darcy permeability, the biaxial
+test and the ``python -m hmdem.calibrate`` command line."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from hmdem.calibrate import main
+from hmdem.coupling.apertures import ApertureLaw
+from hmdem.coupling.darcy import darcy_network, packing_permeability, solve_darcy
+from hmdem.coupling.geometry import contact_gaps
+from hmdem.coupling.radial import default_huang_packing_path
+from hmdem.dem.biaxial import elastic_constants
+from hmdem.network import square_lattice_network
+from hmdem.network.boundaries import linear_flow_boundaries
+from hmdem.network.packing import DiscPacking
+
+N_SIDE, SPACING = 8, 1.0e-3
+
+
+def lattice(n_side=N_SIDE, spacing=SPACING):
+    """Square lattice of touching discs; inflow = first column of domains, outflow = last."""
+    net = square_lattice_network(n_side, spacing)
+    net.inlet_domains, net.outlet_domains = linear_flow_boundaries(net, band=spacing)
+    return net
+
+
+def lattice_pipes(net, n_side=N_SIDE):
+    """For each pipe: is it a flow-direction pipe (grains stacked vertically, separating two
+    domain columns), its grain column ix and its domain row."""
+    g = net.pipe_grains
+    ix, iy = g % n_side, g // n_side
+    along = ix[:, 0] == ix[:, 1]
+    return along, ix[:, 0], iy.min(axis=1)
+
+
+def test_lattice_layout_is_what_the_formulas_below_assume():
+    net = lattice()
+    assert len(net.inlet_domains) == len(net.outlet_domains) == N_SIDE - 1
+    np.testing.assert_allclose(net.domain_centroid[net.inlet_domains, 0], 0.5 * SPACING)
+    np.testing.assert_allclose(net.domain_centroid[net.outlet_domains, 0], (N_SIDE - 1.5) * SPACING)
+
+
+def test_uniform_lattice_gives_the_channel_permeability():
+    # n-1 rows of n-2 identical pipes in series between the inflow and outflow columns:
+    # Q = (n-1) G dP / (n-2), G = a^3 / (12 eta s); with L = (n-2) s between the boundary
+    # centroids and H = (n-1) s the centre extent, k = eta L Q / (H dP) = a^3 / (12 s)
+    net = lattice()
+    a = 40e-6
+    net.pipe_aperture[:] = a
+    flow = solve_darcy(net, viscosity=1e-3, pressure_drop=2e4)
+    assert flow.length == pytest.approx((N_SIDE - 2) * SPACING, rel=1e-12)
+    assert flow.height == pytest.approx((N_SIDE - 1) * SPACING, rel=1e-12)
+    assert flow.permeability == pytest.approx(a**3 / (12 * SPACING), rel=1e-10)
+    assert flow.balance_error < 1e-12
+
+
+def test_columns_in_series_give_the_harmonic_mean_of_a_cubed():
+    # flow pipes of grain column ix (1..n-2) get aperture a_ix; every row is the same series
+    # chain, so the cross pipes carry nothing and k = (n-2) / (12 s sum_ix a_ix^-3)
+    net = lattice()
+    along, ix, _ = lattice_pipes(net)
+    a_col = np.linspace(10e-6, 60e-6, N_SIDE)
+    net.pipe_aperture[:] = np.where(along, a_col[ix], 25e-6)
+    flow = solve_darcy(net)
+    inner = a_col[1:N_SIDE - 1]
+    expected = (N_SIDE - 2) / (12 * SPACING * np.sum(inner**-3.0))
+    assert flow.permeability == pytest.approx(expected, rel=1e-10)
+    # an arithmetic mean of a^3 (a wrong series rule) would be 3.7x larger here
+    assert np.mean(inner**3) / (12 * SPACING) > 3 * expected
+
+
+def test_rows_in_parallel_give_the_arithmetic_mean_of_a_cubed():
+    # flow pipes of domain row r get a_r; p is linear in x in every row, cross pipes carry
+    # nothing, and k = sum_r a_r^3 / (12 s (n-1))
+    net = lattice()
+    along, _, row = lattice_pipes(net)
+    a_row = np.linspace(10e-6, 60e-6, N_SIDE - 1)
+    net.pipe_aperture[:] = np.where(along, a_row[np.minimum(row, N_SIDE - 2)], 5e-6)
+    flow = solve_darcy(net)
+    assert flow.permeability == pytest.approx(np.sum(a_row**3) / (12 * SPACING * (N_SIDE - 1)), rel=1e-10)
+
+
+def test_random_lattice_lies_between_the_rayleigh_bounds_and_ignores_eta_and_dp():
+    # Rayleigh monotonicity: closing every cross pipe (parallel rows of series chains) can
+    # only lower the conductance; making them infinitely conductive (series of parallel
+    # columns) can only raise it. k must also be independent of eta and dP.
+    rng = np.random.default_rng(4)
+    net = lattice()
+    along, ix, row = lattice_pipes(net)
+    a = rng.uniform(5e-6, 50e-6, net.n_pipes)
+    net.pipe_aperture[:] = a
+    k = solve_darcy(net, viscosity=1e-3, pressure_drop=1e3).permeability
+    assert solve_darcy(net, viscosity=0.7, pressure_drop=3e6).permeability == pytest.approx(k, rel=1e-10)
+    inner = along & (ix >= 1) & (ix <= N_SIDE - 2)
+    g = a**3 / (12 * SPACING)  # eta = 1
+    n_rows, n_steps = N_SIDE - 1, N_SIDE - 2
+    lower = sum(1.0 / np.sum(1.0 / g[inner & (row == r)]) for r in range(n_rows))
+    upper = 1.0 / sum(1.0 / np.sum(g[inner & (ix == c)]) for c in range(1, N_SIDE - 1))
+    to_k = n_steps * SPACING / (n_rows * SPACING)  # k = L Q / (H dP) with eta = dP = 1
+    assert lower * to_k < k < upper * to_k
+    assert upper / lower > 1.2  # the bounds are not trivially equal for this field
+
+
+def test_isolated_domains_are_left_out_not_singular():
+    # closing the pipes round one interior domain leaves it floating: still a solution, no flow there
+    net = lattice()
+    net.pipe_aperture[:] = 20e-6
+    target = int(np.argmin(np.linalg.norm(net.domain_centroid - net.domain_centroid.mean(axis=0), axis=1)))
+    net.pipe_aperture[(net.pipe_domains == target).any(axis=1)] = 0.0
+    flow = solve_darcy(net)
+    assert np.isnan(flow.pressure[target])
+    assert 0 < flow.permeability < 20e-6**3 / (12 * SPACING)
+    assert flow.balance_error < 1e-12
+
+
+def test_contact_forces_set_eq13_apertures_of_the_shipped_packing():
+    # with F = F0 on every pipe the Eq. 13 aperture is a0/2 everywhere, with F -> 0+ it is a0:
+    # k must drop by exactly (1/2)^3, whatever the geometry
+    pk = DiscPacking.load(default_huang_packing_path())
+    law = ApertureLaw()
+    m = darcy_network(pk).n_pipes
+    k_a0 = packing_permeability(pk, law, forces=np.full(m, 1e-12 * law.half_aperture_force)).permeability
+    k_half = packing_permeability(pk, law, forces=np.full(m, law.half_aperture_force)).permeability
+    assert k_half / k_a0 == pytest.approx(0.125, rel=1e-9)
+    # ... and with a0 everywhere k is the network's a0^3 / 12 scale: between 0.1x and 10x of the
+    # paper's 7.43e-13 (a sign, power or unit slip would miss by orders of magnitude)
+    assert 7.43e-14 < k_a0 < 7.43e-12
+
+
+def test_elastic_constants_use_compression_positive_strains():
+    ea = np.linspace(0, 0.004, 41)
+    q = 60e6 * ea + 3e3  # an offset must not change the slope
+    el = -0.15 * ea  # the sample widens: lateral strain is negative (compression positive)
+    young, poisson = elastic_constants(ea, el, q, (0.0, 0.001))
+    assert young == pytest.approx(60e6, rel=1e-10)
+    assert poisson == pytest.approx(0.15, rel=1e-10)
+    with pytest.raises(ValueError):
+        elastic_constants(ea, el, q, (0.5, 0.6))
+
+
+# ------------------------------------------------------------------------ command line, bad input
+
+@pytest.mark.parametrize("args,flag", [
+    (["biaxial", "--sigma3", "-1"], "--sigma3"),
+    (["biaxial", "--sigma3", "0"], "--sigma3"),
+    (["biaxial", "--sigma3", "nan"], "--sigma3"),
+    (["biaxial", "--strain-rate", "0"], "--strain-rate"),
+    (["biaxial", "--strain-rate", "inf"], "--strain-rate"),
+    (["biaxial", "--n", "3"], "--n"),
+    (["biaxial", "--n", "1.5"], "--n"),
+    (["biaxial", "--seed", "-1"], "--seed"),
+    (["biaxial", "--max-strain", "0.9"], "--max-strain"),
+    (["darcy", "--stresses", "1e5,-2e5"], "--stresses"),
+    (["darcy", "--stresses", "1e5,,2e5"], "--stresses"),
+    (["darcy", "--stresses", "abc"], "--stresses"),
+    (["darcy", "--packing", "missing.npz"], "--packing"),
+])
+def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, monkeypatch, capsys, args, flag):
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "run"
+    try:
+        code = main([*args, "--out", str(out)])
+    except SystemExit as exc:  # argparse errors exit from inside parse_args
+        code = exc.code
+    assert code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"python -m hmdem.calibrate: {flag}: ")
+    assert list(tmp_path.iterdir()) == []  # no run directory, no temporary one
+
+
+def test_existing_run_directory_is_refused(tmp_path, capsys):
+    out = tmp_path / "taken"
+    out.mkdir()
+    (out / "keep.txt").write_text("x")
+    assert main(["darcy", "--out", str(out)]) == 2
+    assert capsys.readouterr().err.startswith("python -m hmdem.calibrate: --out: ")
+    assert [p.name for p in tmp_path.iterdir()] == ["taken"] and [p.name for p in out.iterdir()] == ["keep.txt"]
+
+
+def test_unreadable_packing_is_refused(tmp_path, capsys):
+    bad = tmp_path / "bad.npz"
+    bad.write_text("not a packing")
+    assert main(["darcy", "--packing", str(bad), "--out", str(tmp_path / "run")]) == 2
+    assert capsys.readouterr().err.startswith("python -m hmdem.calibrate: --packing: ")
+    assert [p.name for p in tmp_path.iterdir()] == ["bad.npz"]
+
+
+# ------------------------------------------------------------------------------------ with YADE
+
+@pytest.mark.yade
+def test_yade_contact_forces_are_k_n_times_the_stored_overlaps():
+    # digest §15.1: k_n = 7.49e7 N/m for any radius pair; after one step each contact of the
+    # stored packing carries k_n x overlap, and near-contacts (gap > 0) carry nothing
+    from hmdem.coupling.darcy import packing_contact_forces
+
+    pk = DiscPacking.load(default_huang_packing_path())
+    net = darcy_network(pk)
+    force = packing_contact_forces(pk, net.pipe_grains)
+    overlap = -contact_gaps(pk.centres, pk.radii, net.pipe_grains)
+    touching = overlap > 0
+    assert touching.sum() > 0.8 * net.n_pipes
+    np.testing.assert_allclose(force[touching], 7.49e7 * overlap[touching], rtol=1e-6)
+    assert np.all(force[overlap < -1e-12] == 0.0)
+
+
+@pytest.mark.yade
+def test_darcy_sweep_permeability_falls_with_confining_stress():
+    # a reduced sample (200 discs): from 0.1 to 2.1 MPa the porosity drops and the contact forces
+    # rise ~20x, closing the Eq. 13 apertures; both lower k, so k must fall, as must KC
+    from hmdem.coupling.darcy import permeability_sweep
+
+    lo, hi = permeability_sweep((0.1e6, 2.1e6), n=200, size=0.47e-3)
+    assert lo.confining_stress == pytest.approx(0.1e6, rel=0.01)
+    assert hi.confining_stress == pytest.approx(2.1e6, rel=0.01)
+    assert hi.porosity_2d < lo.porosity_2d
+    assert hi.mean_contact_force > 10 * lo.mean_contact_force
+    assert hi.permeability < 0.8 * lo.permeability
+    assert hi.kozeny_carman < lo.kozeny_carman
+    assert lo.balance_error < 1e-10 and hi.balance_error < 1e-10
+
+
+@pytest.fixture(scope="module")
+def small_biaxial():
+    # 200 discs, Huang radii, compacted to 0.1 MPa, sheared at 20 /s to 2.5 % (~6 s); on the
+    # full sample 20 /s and 10 /s give peaks within 1.5 % of each other
+    from hmdem.dem.biaxial import run_biaxial
+
+    return run_biaxial(n=200, strain_rate=20.0, seed=0)
+
+
+@pytest.mark.yade
+def test_biaxial_starts_isotropic_and_holds_sigma3(small_biaxial):
+    res = small_biaxial
+    # the rebuilt scene reproduces the compacted state: sigma1 = sigma3 = 0.1 MPa at the start
+    # (compaction servo tolerance 0.5 %, plus one step of wall motion)
+    assert res.sigma1[0] == pytest.approx(0.1e6, rel=0.02)
+    assert res.sigma3[0] == pytest.approx(0.1e6, rel=0.02)
+    # force-controlled side walls: every wall-force snapshot within 3 % of sigma3, the mean within 0.5 %
+    assert res.max_sigma3_deviation < 0.03
+    assert np.mean(res.sigma3) == pytest.approx(0.1e6, rel=0.005)
+    assert np.all(np.diff(res.strain_axial) > 0) and res.strain_axial[-1] == pytest.approx(0.025, abs=5e-5)
+
+
+@pytest.mark.yade
+def test_biaxial_dense_sample_contracts_then_dilates(small_biaxial):
+    # digest §2.3: a dense packing first contracts (eps_v > 0) then dilates past its start
+    ev = small_biaxial.strain_volumetric
+    k = int(np.argmax(ev))
+    assert ev[k] > 1e-4 and small_biaxial.strain_axial[k] < 0.015
+    assert ev[-1] < 0.0
+
+
+@pytest.mark.yade
+def test_biaxial_friction_angle_is_physical_and_comes_from_grain_friction(small_biaxial):
+    # Bounds: rotating frictional discs (mu = 0.6, inter-particle angle 31 deg) mobilise a
+    # macroscopic peak angle of roughly 20-35 deg in 2D DEM (the paper: 30.8); frictionless
+    # discs only have geometric interlocking, well under 15 deg. So 20-40 deg with friction, and
+    # removing the grain friction from the same sample must cost more than 10 deg.
+    from hmdem.dem.biaxial import load_biaxial
+
+    res = small_biaxial
+    assert 20.0 < res.friction_angle < 40.0
+    assert res.friction_angle == pytest.approx(
+        math.degrees(math.asin((res.peak_sigma1 - res.sigma3_at_peak) / (res.peak_sigma1 + res.sigma3_at_peak))))
+    smooth = load_biaxial(res.packing, strain_rate=20.0, friction=0.0)
+    assert smooth.friction_angle < 15.0
+    assert res.friction_angle - smooth.friction_angle > 10.0
+    # elastic constants: positive, E below the contact stiffness scale, 2D nu in (0, 0.5)
+    assert 0.1 * 7.49e7 < res.young_modulus < 7.49e7
+    assert 0.0 < res.poisson_ratio < 0.5
+
+
+@pytest.mark.yade
+def test_calibrate_cli_writes_complete_run_directories(tmp_path):
+    out = tmp_path / "bi"
+    assert main(["biaxial", "--n", "100", "--strain-rate", "40", "--max-strain", "0.004", "--out", str(out),
+                 "--quiet"]) == 0
+    assert {p.name for p in out.iterdir()} == {"summary.json", "timeseries.csv", "biaxial.png"}
+    s = json.loads((out / "summary.json").read_text())
+    for key in ("young_modulus_pa", "poisson_ratio", "peak_sigma1_pa", "friction_angle_deg", "sigma3_pa"):
+        assert math.isfinite(s[key])
+        if key != "sigma3_pa":
+            assert s["relative_errors"][key] == pytest.approx((s[key] - s["targets"][key]) / s["targets"][key])
+    rows = (out / "timeseries.csv").read_text().splitlines()
+    assert rows[0].startswith("cycles,time_s,axial_strain") and len(rows) > 20
+
+    out = tmp_path / "da"
+    assert main(["darcy", "--n", "100", "--stresses", "1.4e5", "--out", str(out), "--quiet"]) == 0
+    assert {p.name for p in out.iterdir()} == {"summary.json", "permeability.csv", "permeability.png"}
+    s = json.loads((out / "summary.json").read_text())
+    assert s["paper_permeability_m2"] == 7.43e-13 and len(s["results"]) == 1
+    assert s["sweep_relative_error_vs_paper"] == pytest.approx(s["results"][0]["permeability"] / 7.43e-13 - 1)
+    stored = s["stored_packing"]
+    assert stored["relative_error_vs_paper"] == pytest.approx(stored["permeability"] / 7.43e-13 - 1)
+    assert len((out / "permeability.csv").read_text().splitlines()) == 3  # header, sweep, stored packing
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no partial directory left
