@@ -84,9 +84,12 @@ def build_parser() -> argparse.ArgumentParser:
     rad.add_argument("--dem-cycles", type=positive("--dem-cycles"),
                      help="DEM cycles per flow step (the paper: 2000); default: the stable DEM step")
     rad.add_argument("--pv-tol", type=positive("--pv-tol"), help="P-V iteration relative tolerance (default 1e-3)")
-    rad.add_argument("--pv-max-iter", type=positive("--pv-max-iter"), help="P-V iteration cap (default 30)")
-    rad.add_argument("--pv-rewind", action="store_true",
-                     help="rewind the DEM before each P-V iteration and relax (Aitken); default: continue it")
+    rad.add_argument("--pv-max-iter", type=positive("--pv-max-iter"), help="P-V iteration cap per attempt (default 12)")
+    pv = rad.add_mutually_exclusive_group()
+    pv.add_argument("--pv-rewind", action="store_true",
+                    help="rewind the DEM to t^n before each P-V iteration, quasi-Newton update (default)")
+    pv.add_argument("--pv-continue", action="store_true",
+                    help="continue the DEM between P-V iterations, p_trial <- p_calc (digest §6)")
     add_run_options(rad, "the shipped Huang sample")
     return parser
 
@@ -198,7 +201,7 @@ def run_radial(args) -> int:
         sc.coupling.pv_rtol = args.pv_tol
     if args.pv_max_iter is not None:
         sc.coupling.pv_max_iter = int(args.pv_max_iter)
-    sc.coupling.pv_rewind = args.pv_rewind
+    sc.coupling.pv_rewind = not args.pv_continue
     if args.t_max is not None:
         sc.setup.t_max = args.t_max
     if args.max_steps is not None:

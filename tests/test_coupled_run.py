@@ -94,11 +94,12 @@ def test_yade_batch_runs_the_radial_script(tmp_path):
         assert summary["case"] == "B3" and summary["steps"] == 2 and summary["one_way"] is one_way
 
 
-def test_rewound_pv_iteration_converges_and_conserves_mass(small_sample):
-    # opt-in variant: the DEM is rewound to t^n before each iteration after the first and
-    # p_trial is relaxed with Aitken's factor
+def test_continued_pv_iteration_converges_and_conserves_mass(small_sample):
+    # the paper's likely practice (digest §6): the DEM is not rewound between iterations and
+    # p_trial <- p_calc; on this small sample it converges too, and conserves mass
     sc = build_radial_scenario(RADIAL_CASES["A3"], packing=small_sample)
-    sc.coupling.pv_rewind = True
+    sc.coupling.pv_rewind = False
+    sc.coupling.pv_max_iter = 30  # substitution converges slowly at some steps; no retries here
     grains = start_grains(sc)
     sc.setup.max_steps = 60
     model = CoupledFlowModel(sc.net, sc.setup, grains, sc.coupling)
@@ -106,3 +107,61 @@ def test_rewound_pv_iteration_converges_and_conserves_mass(small_sample):
     assert rec.steps == 60 and model.coupling_record.unconverged_steps == 0
     assert max(model.coupling_record.pv_iterations) >= 2
     assert rec.max_mass_balance_error < 1e-10
+
+
+# ---- reduced Huang cases to breakthrough (digest §13.3 H1, H2, H6, H10; full size: make validate)
+@pytest.fixture(scope="module")
+def reduced_runs(small_sample):
+    runs = {}
+    for case in ("A1", "A3", "B3"):
+        sc = build_radial_scenario(RADIAL_CASES[case], packing=small_sample)
+        grains = start_grains(sc)
+        model = CoupledFlowModel(sc.net, sc.setup, grains, sc.coupling)
+        state, rec = model.run()
+        runs[case] = (sc, model, state, rec)
+    return runs
+
+
+def injection_pressure(rec):
+    return np.array([r[0] for r in rec.rows]), np.array([r[2] for r in rec.rows])
+
+
+def test_reduced_a1_opens_no_contact_and_its_pressure_rises(reduced_runs):
+    sc, model, state, rec = reduced_runs["A1"]
+    assert rec.status == "breakthrough"
+    assert model.opened.sum() == 0  # H1: pure infiltration
+    # H1: monotonic rise, read as the paper's Fig. 14 shows it: at ten equally spaced times the
+    # injection pressure never falls (single steps dip when a pore fills and its meniscus jumps)
+    t, p = injection_pressure(rec)
+    on_grid = np.interp(np.linspace(0.0, t[-1], 11)[1:], t, p)
+    assert np.all(np.diff(on_grid) >= 0.0)
+
+
+def test_reduced_breakthrough_time_ratio_a1_a3(reduced_runs):
+    # H6: t_f(A1) / t_f(A3) = 20 +- 5 (the injection velocity ratio 165.80 / 8.22)
+    ratio = reduced_runs["A1"][2].t / reduced_runs["A3"][2].t
+    assert 15.0 <= ratio <= 25.0
+
+
+def test_reduced_a3_opens_contacts(reduced_runs):
+    sc, model, state, rec = reduced_runs["A3"]
+    assert rec.status == "breakthrough"
+    assert model.opened.sum() > 0  # H2: fractures near the port
+
+
+@pytest.mark.xfail(strict=True, reason="A3/A1 peak ratio is 12.2 on this sample (paper 6.6, digest H2 bound "
+                   "[4, 10]): A3 rises to breakthrough instead of peaking and dropping; see the issue 3 note")
+def test_reduced_a3_a1_peak_ratio(reduced_runs):
+    ratio = reduced_runs["A3"][3].peak_injection_pressure / reduced_runs["A1"][3].peak_injection_pressure
+    assert 4.0 <= ratio <= 10.0
+
+
+def test_reduced_b3_rewound_iteration_converges_with_step_halving(reduced_runs):
+    # B3 drives ~10 MPa into a 0.14 MPa sample: the rewound P-V iteration converges at every
+    # step, shortening the flow step where it must (the continued iteration diverges here)
+    sc, model, state, rec = reduced_runs["B3"]
+    assert rec.status == "breakthrough"
+    assert model.coupling_record.unconverged_steps == 0
+    assert model.coupling_record.dt_halvings > 0
+    assert rec.max_mass_balance_error < 1e-10
+    assert rec.run_mass_balance_error(sc.setup.rate, state.t) < 1e-10

@@ -37,6 +37,9 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
         "regime": classify_radial_regime(int(opened.sum()), d_f),
         "fractal_dimension": d_f,
         "n_opened_contacts": int(opened.sum()),
+        "n_detached_contacts": int(model.detached.sum()),
+        "opening_gap_m": model.opening_gap,
+        "n_floored_domains": int(model.floored.sum()),
         "n_initial_contacts": int(model.initially_closed.sum()),
         "mean_pipe_resistance_gpa_s_per_m2": float(np.mean(resistance)) / GPA,
         "lowest_path_resistance_gpa_s_per_m2": path / GPA,
@@ -45,6 +48,7 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
         "mean_pv_iterations": float(np.mean(cr.pv_iterations)) if cr.pv_iterations else 0.0,
         "max_pv_iterations": int(max(cr.pv_iterations)) if cr.pv_iterations else 0,
         "unconverged_pv_steps": cr.unconverged_steps,
+        "pv_dt_halvings": cr.dt_halvings,
         "dem_cycles": cr.dem_cycles,
         "dem_cycles_per_step": cr.dem_cycles / max(rec.steps, 1),
         "one_way": sc.coupling.one_way,
@@ -53,7 +57,8 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
     }
 
     def files(tmp: Path) -> None:
-        np.savez_compressed(tmp / "fractures.npz", opened=opened, pipe_grains=g, gap=gap,
+        np.savez_compressed(tmp / "fractures.npz", opened=opened, detached=model.detached, max_gap=model.max_gap,
+                            pipe_grains=g, gap=gap,
                             aperture=net.pipe_aperture, initially_closed=model.initially_closed,
                             positions=positions, initial_positions=initial_positions, radii=grains.radii,
                             contact_pairs=pairs, contact_forces=forces)
