@@ -31,6 +31,7 @@ import YADE (``hmdem.dem.assembly.DiscAssembly`` implements the protocol).
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -89,6 +90,8 @@ class CouplingRecord:
     dem_cycles: int = 0
     unconverged_steps: int = 0
     dt_halvings: int = 0
+    dem_seconds: float = 0.0  # wall time in DEM cycles
+    rewind_seconds: float = 0.0  # wall time saving and restoring the DEM state
 
 
 class CoupledFlowModel(FlowModel):
@@ -135,10 +138,21 @@ class CoupledFlowModel(FlowModel):
         grains.set_external_forces(forces)
         cycles = self.dem_cycles(dt)
         grains.timestep = dt / cycles
+        start = time.perf_counter()
         grains.run(cycles)
+        self.coupling_record.dem_seconds += time.perf_counter() - start
         self.coupling_record.dem_cycles += cycles
         self.positions = grains.positions()
         return self.positions
+
+    def _rewind(self, save: bool = False) -> None:
+        """Keep (save=True) or return to the DEM state of t^n."""
+        start = time.perf_counter()
+        if save:
+            self.grains.save_state()
+        else:
+            self.grains.restore_state()
+        self.coupling_record.rewind_seconds += time.perf_counter() - start
 
     def domain_volumes(self, positions: np.ndarray) -> np.ndarray:
         """Centre-polygon areas, held at :data:`VOLUME_FLOOR` x the initial area (the same
@@ -168,7 +182,7 @@ class CoupledFlowModel(FlowModel):
             return sol, fill, dt, limiter
         # rewound iteration: a step whose P-V iteration does not converge (or diverges) is
         # retried from t^n with half the step; the cap grows back after easy steps
-        self.grains.save_state()
+        self._rewind(save=True)
         start_positions, nominal = self.positions, self.setup.dt
         for halving in range(c.max_dt_halvings + 1):
             self.setup.dt = min(nominal, self.coupling_dt)
@@ -182,7 +196,7 @@ class CoupledFlowModel(FlowModel):
                 self.setup.dt = nominal
             if converged or halving == c.max_dt_halvings:
                 break
-            self.grains.restore_state()
+            self._rewind()
             self.positions = start_positions
             self.coupling_dt = 0.5 * self._tried_dt
             rec.dt_halvings += 1
@@ -205,7 +219,7 @@ class CoupledFlowModel(FlowModel):
             return sol, fill, dt, limiter, 0, True
         g, orient, pc = self.pipe_properties(state)
         p_trial = sol.pressure
-        self.quasi_newton.reset()
+        self.quasi_newton.new_step(dt)
         for iteration in range(1, c.pv_max_iter + 1):
             self.volume_change[:] = self.domain_volumes(positions) - self.reference_volume
             calc, fill = self._trial(state, dt, g, orient, pc, sol.blocked)
@@ -222,7 +236,7 @@ class CoupledFlowModel(FlowModel):
                 break
             if c.pv_rewind:
                 p_trial = self.quasi_newton.update(p_trial, calc.pressure)
-                self.grains.restore_state()
+                self._rewind()
                 self.positions = start_positions
             else:
                 p_trial = calc.pressure

@@ -6,45 +6,66 @@ substitution p_trial <- p_calc diverges where a loosely held grain is more compl
 fluid pocket next to it is drained within dt (the iteration then swings from side to side; seen
 in Huang A1 near the front). IQN-ILS (Degroote, Bathe & Vierendeels 2009, Comput. Struct. 87)
 builds a least-squares model of the inverse Jacobian of the residual r = H(x) - x from the
-iterations so far, which captures those few unstable modes; the first update is a relaxed
-substitution.
+secant pairs (differences of successive residuals and outputs), which captures those few
+unstable modes. The pairs of the last ``reuse_steps`` flow steps taken with the same dt are
+kept (IQN-ILS(q)): the Jacobian changes little from step to step, so most steps then start with
+a quasi-Newton update instead of a relaxed substitution.
 """
 
 from __future__ import annotations
+
+from collections import deque
 
 import numpy as np
 
 
 class InterfaceQuasiNewton:
-    """x_{k+1} from (x_k, H(x_k)) pairs of one time step (call :meth:`reset` at each new step)."""
+    """x_{k+1} from (x_k, H(x_k)) pairs; call :meth:`new_step` at the start of each flow step."""
 
-    def __init__(self, first_relaxation: float = 0.5, filter_tolerance: float = 1e-10, max_columns: int = 30):
+    def __init__(self, first_relaxation: float = 0.5, filter_tolerance: float = 1e-3, reuse_steps: int = 5,
+                 max_columns: int = 40):
         self.first_relaxation = first_relaxation
         self.filter_tolerance = filter_tolerance
         self.max_columns = max_columns
-        self.reset()
+        self._archive: deque = deque(maxlen=reuse_steps)  # (dt, dr columns, dh columns) per step
+        self._dt = None
+        self._last = None  # (r, h) of the previous iterate of this step
+        self._dr: list[np.ndarray] = []
+        self._dh: list[np.ndarray] = []
 
-    def reset(self) -> None:
-        self._residuals: list[np.ndarray] = []
-        self._outputs: list[np.ndarray] = []
+    def new_step(self, dt: float | None = None) -> None:
+        """Archive this step's secant pairs and start a step at ``dt`` (pairs are reused only
+        between steps of the same dt: the map's Jacobian depends on dt)."""
+        if self._dr:
+            self._archive.append((self._dt, self._dr, self._dh))
+        self._dt, self._last, self._dr, self._dh = dt, None, [], []
+
+    def _columns(self):
+        dr, dh = self._dr[::-1], self._dh[::-1]  # newest first: they survive the filter
+        for dt, old_dr, old_dh in reversed(self._archive):
+            if dt is not None and self._dt is not None and abs(dt - self._dt) <= 1e-9 * self._dt:
+                dr, dh = dr + old_dr[::-1], dh + old_dh[::-1]
+        return dr[: self.max_columns], dh[: self.max_columns]
 
     def update(self, x: np.ndarray, h: np.ndarray) -> np.ndarray:
         """Next input after evaluating H(x) = h."""
         r = h - x
-        self._residuals.append(r)
-        self._outputs.append(h)
-        if len(self._residuals) == 1:
+        if self._last is not None:
+            self._dr.append(r - self._last[0])
+            self._dh.append(h - self._last[1])
+        self._last = (r, h)
+        dr, dh = self._columns()
+        if not dr:
             return x + self.first_relaxation * r
-        # columns: differences to the latest iterate (span of the secant information)
-        dr = np.column_stack([r - ri for ri in self._residuals[-self.max_columns - 1:-1]])
-        dh = np.column_stack([h - hi for hi in self._outputs[-self.max_columns - 1:-1]])
-        q, tri = np.linalg.qr(dr)
-        # drop columns that add (next to) nothing: keeps the least-squares problem well posed
-        keep = np.abs(np.diag(tri)) > self.filter_tolerance * max(np.abs(np.diag(tri)).max(), 1e-300)
-        if not keep.all():
-            dr, dh = dr[:, keep], dh[:, keep]
-            if dr.shape[1] == 0:
-                return x + self.first_relaxation * r
-            q, tri = np.linalg.qr(dr)
-        c = np.linalg.solve(tri, -(q.T @ r))
-        return h + dh @ c
+        v, w = np.column_stack(dr), np.column_stack(dh)
+        # drop the first column (oldest last) whose part not explained by the earlier ones is
+        # below filter_tolerance of its length, until none is: keeps the least squares well posed
+        keep = np.flatnonzero(np.linalg.norm(v, axis=0) > 0.0)
+        while len(keep):
+            q, tri = np.linalg.qr(v[:, keep])
+            weak = np.abs(np.diag(tri)) <= self.filter_tolerance * np.linalg.norm(v[:, keep], axis=0)
+            if not weak.any():
+                c = np.linalg.solve(tri, -(q.T @ r))
+                return h + w[:, keep] @ c
+            keep = np.delete(keep, np.argmax(weak))
+        return x + self.first_relaxation * r
