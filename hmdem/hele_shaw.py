@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import signal
 import sys
 import time
 from dataclasses import replace
@@ -223,12 +224,19 @@ def run_radial(args) -> int:
     return 130 if rec.status == "interrupted" else 0
 
 
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0].startswith("--") and argv[0] not in ("--help", "-h", "--version"):
         argv = ["linear", *argv]
     parser = build_parser()
     args = parser.parse_args(argv)
+    # a batch scheduler's SIGTERM (or kill) ends a run like Ctrl-C: status "interrupted", the
+    # partial run directory written
+    signal.signal(signal.SIGTERM, _interrupt)
     try:
         if args.command == "linear":
             return run_linear(args)

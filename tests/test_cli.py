@@ -113,8 +113,10 @@ def test_explicit_scheme_runs_and_agrees_early(tmp_path):
     assert p_im == pytest.approx(p_ex, rel=0.05)
 
 
-def test_real_sigint_leaves_valid_partial_directory(tmp_path):
-    # a user's Ctrl-C (SIGINT) mid-run: exit 130 and a complete run directory marked interrupted
+@pytest.mark.parametrize("signal_name", ["SIGINT", "SIGTERM"])
+def test_real_signal_leaves_valid_partial_directory(tmp_path, signal_name):
+    # a user's Ctrl-C (SIGINT) or a batch scheduler's SIGTERM mid-run: exit 130 and a complete
+    # run directory marked interrupted
     import signal
     import time
 
@@ -127,7 +129,7 @@ def test_real_sigint_leaves_valid_partial_directory(tmp_path):
         if "steps=" in line or proc.poll() is not None:
             break
     time.sleep(1.0)
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(getattr(signal, signal_name))
     proc.communicate(timeout=120)
     assert proc.returncode == 130
     summary = json.loads((out / "summary.json").read_text())
