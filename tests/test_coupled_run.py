@@ -165,3 +165,25 @@ def test_reduced_b3_rewound_iteration_converges_with_step_halving(reduced_runs):
     assert model.coupling_record.dt_halvings > 0
     assert rec.max_mass_balance_error < 1e-10
     assert rec.run_mass_balance_error(sc.setup.rate, state.t) < 1e-10
+
+
+def test_reduced_a3_halved_flow_step_keeps_regime_and_opened_contacts(reduced_runs, small_sample):
+    # issue 3 acceptance: halving the flow step leaves regime and opened-contact count within 15 %
+    from dataclasses import replace
+
+    from hmdem.coupling.radial import classify_radial_regime
+    from hmdem.report import pattern_fractal_dimension
+
+    def outcome(sc, model, state):
+        n = int(model.opened.sum())
+        return n, classify_radial_regime(n, pattern_fractal_dimension(sc, state))
+
+    sc, model, state, rec = reduced_runs["A3"]
+    n_full, regime_full = outcome(sc, model, state)
+    half = build_radial_scenario(replace(RADIAL_CASES["A3"], dt=0.5 * RADIAL_CASES["A3"].dt), packing=small_sample)
+    half_model = CoupledFlowModel(half.net, half.setup, start_grains(half), half.coupling)
+    half_state, half_rec = half_model.run()
+    n_half, regime_half = outcome(half, half_model, half_state)
+    assert half_rec.status == "breakthrough" and n_full > 0
+    assert abs(n_half - n_full) <= 0.15 * n_full
+    assert regime_half == regime_full
