@@ -7,7 +7,7 @@ APT_PKGS := yade python3-yade python3-venv
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 STAMP := $(VENV)/.hmdem-installed
 
-.PHONY: setup demo test validate bench clean packing huang-packing
+.PHONY: setup demo test validate bench bench-huang calibrate clean packing huang-packing
 
 setup: $(STAMP)
 
@@ -37,6 +37,14 @@ validate: setup
 bench: setup
 	$(PY) benchmarks/run_benchmarks.py
 	$(PY) benchmarks/scaling.py
+
+# the four Huang cases at paper size, one after the other (hours: see BENCHMARKS.md)
+bench-huang: setup
+	$(PY) benchmarks/huang.py --out runs/bench
+
+calibrate: setup
+	$(PY) -m hmdem.calibrate biaxial
+	$(PY) -m hmdem.calibrate darcy
 
 packing: setup
 	$(PY) -m hmdem.dem.packing --out hmdem/data/lenormand_packing.npz
