@@ -23,31 +23,15 @@ import time
 from pathlib import Path
 
 from . import __version__
+from .cli import InputError, OneLineParser, non_negative_int, positive_number
 from .rundir import atomic_run_directory, json_safe
 
 PROG = "python -m hmdem.calibrate"
 MIN_GRAINS = 50  # fewer discs do not make a packing with a load-bearing interior
 
 
-class InputError(ValueError):
-    """Bad command-line input: one line, exit status 2, nothing written."""
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line "PROG: --flag: reason", exit 2
-        if message.startswith("argument "):
-            message = message[len("argument "):]
-        self.exit(2, f"{PROG}: {message}\n")
-
-
-def positive_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text!r}") from None
-    if not math.isfinite(v) or v <= 0:
-        raise argparse.ArgumentTypeError(f"must be > 0 and finite, got {text!r}")
-    return v
+class _Parser(OneLineParser):
+    command = PROG
 
 
 def grain_count(text: str) -> int:
@@ -60,18 +44,8 @@ def grain_count(text: str) -> int:
     return v
 
 
-def seed_value(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text!r}")
-    return v
-
-
 def strain_value(text: str) -> float:
-    v = positive_float(text)
+    v = positive_number(text)
     if v >= 0.5:
         raise argparse.ArgumentTypeError(f"must be an axial strain in (0, 0.5), got {text!r}")
     return v
@@ -85,7 +59,7 @@ def stress_list(text: str) -> list[float]:
     out = []
     for p in parts:
         try:
-            out.append(positive_float(p))
+            out.append(positive_number(p))
         except argparse.ArgumentTypeError:
             raise argparse.ArgumentTypeError(f"every stress must be > 0 and finite [Pa], got {p!r}") from None
     return out
@@ -100,11 +74,11 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", parser_class=_Parser)
     bi = sub.add_parser("biaxial", help="strain-controlled biaxial test (YADE)")
     bi.add_argument("--n", type=grain_count, default=1395, help="number of discs (default 1395)")
-    bi.add_argument("--sigma3", type=positive_float, default=SIGMA3, help="confining stress [Pa] (default 1e5)")
-    bi.add_argument("--strain-rate", type=positive_float, default=STRAIN_RATE,
+    bi.add_argument("--sigma3", type=positive_number, default=SIGMA3, help="confining stress [Pa] (default 1e5)")
+    bi.add_argument("--strain-rate", type=positive_number, default=STRAIN_RATE,
                     help=f"axial strain rate [1/s] (default {STRAIN_RATE:g})")
     bi.add_argument("--max-strain", type=strain_value, default=0.025, help="final axial strain (default 0.025)")
-    bi.add_argument("--seed", type=seed_value, default=0, help="packing seed (default 0)")
+    bi.add_argument("--seed", type=non_negative_int, default=0, help="packing seed (default 0)")
     bi.add_argument("--rate-check", action="store_true",
                     help="repeat the loading at half the strain rate on the same sample and report the change")
     bi.add_argument("--out", type=Path, help="run directory to create (default runs/biaxial-<time>)")
@@ -116,7 +90,7 @@ def build_parser() -> argparse.ArgumentParser:
     da.add_argument("--packing", type=Path, help="stored packing .npz to evaluate as well (default: the shipped "
                                                  "Huang sample)")
     da.add_argument("--n", type=grain_count, default=1395, help="discs of the compacted samples (default 1395)")
-    da.add_argument("--seed", type=seed_value, default=0, help="packing seed (default 0)")
+    da.add_argument("--seed", type=non_negative_int, default=0, help="packing seed (default 0)")
     da.add_argument("--out", type=Path, help="run directory to create (default runs/darcy-<time>)")
     da.add_argument("--quiet", action="store_true", help="no progress lines")
     return parser

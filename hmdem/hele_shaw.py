@@ -8,7 +8,6 @@
 from __future__ import annotations
 
 import argparse
-import math
 import signal
 import sys
 import time
@@ -17,6 +16,7 @@ from pathlib import Path
 
 from . import __version__
 from .cases import CASES
+from .cli import InputError, OneLineParser, non_negative_int, positive_number
 
 PROG = "python -m hmdem.hele_shaw"
 CASE_NAMES = tuple(CASES)
@@ -24,35 +24,8 @@ RADIAL_NAMES = ("A1", "A3", "B1", "B3")
 EXPLICIT_DEFAULT_MAX_STEPS = 100_000
 
 
-class InputError(ValueError):
-    """Bad command-line input: one line, exit status 2."""
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line, exit 2, nothing written
-        self.exit(2, f"{self.prog}: error: {message}\n")
-
-
-def positive(name):
-    def parse(text):
-        try:
-            v = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be a positive finite number, got {text!r}") from None
-        if not math.isfinite(v) or v <= 0:
-            raise argparse.ArgumentTypeError(f"{name} must be a positive finite number, got {text!r}")
-        return v
-    return parse
-
-
-def non_negative_int(text):
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--seed must be a non-negative integer, got {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"--seed must be a non-negative integer, got {text!r}")
-    return v
+class _Parser(OneLineParser):
+    command = PROG
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -62,13 +35,13 @@ def build_parser() -> argparse.ArgumentParser:
     lin = sub.add_parser("linear", help="fixed-grain cases of seed 004 §4.1 and App. D")
     lin.add_argument("--case", choices=CASE_NAMES, default="vf", help="vf, cf1, sd, cf2 (Lenormand), chen, darcy")
     rate = lin.add_mutually_exclusive_group()
-    rate.add_argument("--ca-star", type=positive("--ca-star"), help="modified capillary number Ca* (seed 004 Eq. 24)")
-    rate.add_argument("--rate", type=positive("--rate"), help="injection rate Q [m^3/s per metre of cell depth]")
-    lin.add_argument("--viscosity-ratio", type=positive("--viscosity-ratio"),
+    rate.add_argument("--ca-star", type=positive_number, help="modified capillary number Ca* (seed 004 Eq. 24)")
+    rate.add_argument("--rate", type=positive_number, help="injection rate Q [m^3/s per metre of cell depth]")
+    lin.add_argument("--viscosity-ratio", type=positive_number,
                      help="M = eta_inv / eta_def; eta_def is kept, eta_inv = M eta_def")
-    lin.add_argument("--mean-aperture", type=positive("--mean-aperture"), help="mean pipe aperture [m] (default 0.42e-3)")
+    lin.add_argument("--mean-aperture", type=positive_number, help="mean pipe aperture [m] (default 0.42e-3)")
     lin.add_argument("--seed", type=non_negative_int, default=0, help="aperture field seed (default 0)")
-    lin.add_argument("--dt", type=positive("--dt"), help="nominal flow step [s] (default per case)")
+    lin.add_argument("--dt", type=positive_number, help="nominal flow step [s] (default per case)")
     lin.add_argument("--scheme", choices=("implicit", "explicit"), default="implicit")
     lin.add_argument("--inlet", choices=("manifold", "split"), default="manifold",
                      help="manifold: inflow domains share one pressure (default); split: Q/N_in each")
@@ -76,16 +49,16 @@ def build_parser() -> argparse.ArgumentParser:
 
     rad = sub.add_parser("radial", help="movable-grain Huang cases of seed 004 §4.2 (YADE)")
     rad.add_argument("--case", choices=RADIAL_NAMES, default="A1", help="A1, A3 (5 cP), B1, B3 (176 cP)")
-    rad.add_argument("--viscosity-ratio", type=positive("--viscosity-ratio"),
+    rad.add_argument("--viscosity-ratio", type=positive_number,
                      help="M = eta_inv / eta_air; eta_inv = M x 0.018 cP")
-    rad.add_argument("--ca-star", type=positive("--ca-star"), help="modified capillary number Ca* (seed 004 Eq. 24)")
+    rad.add_argument("--ca-star", type=positive_number, help="modified capillary number Ca* (seed 004 Eq. 24)")
     rad.add_argument("--one-way", action="store_true",
                      help="sequential coupling: grains move, dV is left out of the pressure equation")
-    rad.add_argument("--dt", type=positive("--dt"), help="nominal flow step [s] (default per case, Table 4)")
-    rad.add_argument("--dem-cycles", type=positive("--dem-cycles"),
+    rad.add_argument("--dt", type=positive_number, help="nominal flow step [s] (default per case, Table 4)")
+    rad.add_argument("--dem-cycles", type=positive_number,
                      help="DEM cycles per flow step (the paper: 2000); default: the stable DEM step")
-    rad.add_argument("--pv-tol", type=positive("--pv-tol"), help="P-V iteration relative tolerance (default 1e-3)")
-    rad.add_argument("--pv-max-iter", type=positive("--pv-max-iter"), help="P-V iteration cap per attempt (default 12)")
+    rad.add_argument("--pv-tol", type=positive_number, help="P-V iteration relative tolerance (default 1e-3)")
+    rad.add_argument("--pv-max-iter", type=positive_number, help="P-V iteration cap per attempt (default 12)")
     pv = rad.add_mutually_exclusive_group()
     pv.add_argument("--pv-rewind", action="store_true",
                     help="rewind the DEM to t^n before each P-V iteration, quasi-Newton update (default)")
@@ -97,8 +70,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def add_run_options(sub: argparse.ArgumentParser, default_packing: str) -> None:
     """Stopping, input and output flags shared by the linear and radial commands."""
-    sub.add_argument("--t-max", type=positive("--t-max"), help="stop at this simulated time [s]")
-    sub.add_argument("--max-steps", type=positive("--max-steps"), help="stop after this many steps")
+    sub.add_argument("--t-max", type=positive_number, help="stop at this simulated time [s]")
+    sub.add_argument("--max-steps", type=positive_number, help="stop after this many steps")
     sub.add_argument("--packing", type=Path, help=f"packing .npz (default: {default_packing})")
     sub.add_argument("--out", type=Path, help="run directory to create (default runs/<case>-<time>)")
     sub.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -243,7 +216,7 @@ def main(argv=None) -> int:
         if args.command == "radial":
             return run_radial(args)
     except InputError as exc:
-        print(f"{parser.prog}: error: {exc}", file=sys.stderr)
+        print(f"{PROG}: {exc}", file=sys.stderr)
         return 2
     parser.print_help()
     return 2

@@ -1,0 +1,43 @@
+"""Command-line conventions shared by hmdem's commands: bad input is one line on stderr that
+names the parameter and what is allowed (``<command>: --flag: reason``), exit status 2, and
+nothing written."""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+
+class InputError(ValueError):
+    """Bad command-line input found after parsing (e.g. a missing file): one line, exit 2."""
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse parser whose errors are one line, prefixed by :attr:`command` (set by each CLI)."""
+
+    command = "hmdem"
+
+    def error(self, message):
+        if message.startswith("argument "):
+            message = message[len("argument "):]
+        self.exit(2, f"{self.command}: {message}\n")
+
+
+def positive_number(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text!r}") from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"must be > 0 and finite, got {text!r}")
+    return value
+
+
+def non_negative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text!r}")
+    return value
