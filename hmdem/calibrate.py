@@ -23,7 +23,7 @@ import time
 from pathlib import Path
 
 from . import __version__
-from .cli import InputError, OneLineParser, non_negative_int, positive_number
+from .cli import InputError, OneLineParser, new_run_directory, non_negative_int, positive_number
 from .rundir import atomic_run_directory, json_safe
 
 PROG = "python -m hmdem.calibrate"
@@ -94,13 +94,6 @@ def build_parser() -> argparse.ArgumentParser:
     da.add_argument("--out", type=Path, help="run directory to create (default runs/darcy-<time>)")
     da.add_argument("--quiet", action="store_true", help="no progress lines")
     return parser
-
-
-def new_run_directory(args) -> Path:
-    out = args.out or Path("runs") / f"{args.command}-{time.strftime('%Y%m%d-%H%M%S')}"
-    if out.exists():
-        raise InputError(f"--out: {str(out)!r} already exists; choose a new run directory")
-    return out
 
 
 def provenance(argv) -> dict:
@@ -191,7 +184,7 @@ def plot_biaxial(path: Path, res) -> None:
 def run_biaxial_command(args, argv) -> int:
     from .dem.biaxial import MAX_STRAIN, load_biaxial, run_biaxial
 
-    out = new_run_directory(args)
+    out = new_run_directory(args.out, args.command)
     t0 = time.perf_counter()
     bar = None if args.quiet else _BiaxialProgress(args.max_strain)
     res = run_biaxial(args.n, args.sigma3, args.strain_rate, args.seed, args.max_strain,
@@ -283,7 +276,7 @@ def run_darcy_command(args, argv) -> int:
         packing = DiscPacking.load(path)
     except Exception as exc:  # not an npz, or missing arrays
         raise InputError(f"--packing: cannot read a packing from {str(path)!r} ({type(exc).__name__})") from None
-    out = new_run_directory(args)
+    out = new_run_directory(args.out, args.command)
     t0 = time.perf_counter()
     law = ApertureLaw()
 

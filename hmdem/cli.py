@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import argparse
 import math
+import time
+from pathlib import Path
 
 
 class InputError(ValueError):
@@ -41,3 +43,11 @@ def non_negative_int(text: str) -> int:
     if value < 0:
         raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text!r}")
     return value
+
+
+def new_run_directory(out: Path | None, name: str) -> Path:
+    """``--out`` or ``runs/<name>-<time>``; refuses an existing directory (runs never overwrite)."""
+    out = out or Path("runs") / f"{name}-{time.strftime('%Y%m%d-%H%M%S')}"
+    if out.exists():
+        raise InputError(f"--out: {str(out)!r} already exists; choose a new run directory")
+    return out

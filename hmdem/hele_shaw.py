@@ -16,7 +16,7 @@ from pathlib import Path
 
 from . import __version__
 from .cases import CASES
-from .cli import InputError, OneLineParser, non_negative_int, positive_number
+from .cli import InputError, OneLineParser, new_run_directory, non_negative_int, positive_number
 
 PROG = "python -m hmdem.hele_shaw"
 CASE_NAMES = tuple(CASES)
@@ -123,7 +123,7 @@ def run_linear(args) -> int:
 
     if args.packing is not None and not args.packing.is_file():
         raise InputError(f"--packing: no such file {str(args.packing)!r}")
-    out = new_run_directory(args)
+    out = new_run_directory(args.out, args.case)
     case = make_case(args)
     sc = build_scenario(case, seed=args.seed, inlet=args.inlet, scheme=args.scheme, packing_path=args.packing)
     if args.max_steps is not None:
@@ -145,13 +145,6 @@ def run_linear(args) -> int:
     return 130 if rec.status == "interrupted" else 0
 
 
-def new_run_directory(args) -> Path:
-    out = args.out or Path("runs") / f"{args.case}-{time.strftime('%Y%m%d-%H%M%S')}"
-    if out.exists():
-        raise InputError(f"--out: {str(out)!r} already exists; choose a new run directory")
-    return out
-
-
 def run_radial(args) -> int:
     from dataclasses import replace as replace_case
 
@@ -162,7 +155,7 @@ def run_radial(args) -> int:
 
     if args.packing is not None and not args.packing.is_file():
         raise InputError(f"--packing: no such file {str(args.packing)!r}")
-    out = new_run_directory(args)
+    out = new_run_directory(args.out, args.case)
     case = RADIAL_CASES[args.case]
     if args.dt is not None:
         case = replace_case(case, dt=args.dt)
