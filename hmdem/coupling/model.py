@@ -104,7 +104,7 @@ class CoupledFlowModel(FlowModel):
         self.coupling_record = CouplingRecord()
         self.quasi_newton = InterfaceQuasiNewton()
         self.coupling_dt = setup.dt  # flow-step cap of the coupling (halved when P-V fails)
-        self._tried_dt = setup.dt
+        self._tried_dt = setup.dt  # the last step the P-V iteration was tried at
         self.contact_pairs = net.pipe_grains
         self.positions = grains.positions()  # grain centres now (read from the DEM after each run)
         initial_volume = self.geometry.volumes(self.positions)
@@ -146,12 +146,14 @@ class CoupledFlowModel(FlowModel):
         return self.positions
 
     def _rewind(self, save: bool = False) -> None:
-        """Keep (save=True) or return to the DEM state of t^n."""
+        """Keep (save=True) or return to the DEM state, and the grain positions, of t^n."""
         start = time.perf_counter()
         if save:
             self.grains.save_state()
+            self._saved_positions = self.positions
         else:
             self.grains.restore_state()
+            self.positions = self._saved_positions
         self.coupling_record.rewind_seconds += time.perf_counter() - start
 
     def domain_volumes(self, positions: np.ndarray) -> np.ndarray:
@@ -177,34 +179,35 @@ class CoupledFlowModel(FlowModel):
         c, rec = self.coupling, self.coupling_record
         if c.one_way or not c.pv_rewind:
             sol, fill, dt, limiter, iterations, converged = self._pv_step(state, blocked_guess)
-            rec.unconverged_steps += not converged
-            rec.pv_iterations.append(iterations)
-            return sol, fill, dt, limiter
-        # rewound iteration: a step whose P-V iteration does not converge (or diverges) is
-        # retried from t^n with half the step; the cap grows back after easy steps
+        else:
+            sol, fill, dt, limiter, iterations, converged = self._pv_step_with_retries(state, blocked_guess)
+        rec.unconverged_steps += not converged
+        rec.pv_iterations.append(iterations)
+        return sol, fill, dt, limiter
+
+    def _pv_step_with_retries(self, state, blocked_guess):
+        """Rewound iteration: a step whose P-V iteration does not converge (or diverges) is
+        retried from t^n with half the step; the cap grows back after easy steps."""
+        c = self.coupling
         self._rewind(save=True)
-        start_positions, nominal = self.positions, self.setup.dt
         for halving in range(c.max_dt_halvings + 1):
-            self.setup.dt = min(nominal, self.coupling_dt)
             try:
                 sol, fill, dt, limiter, iterations, converged = self._pv_step(state, blocked_guess)
             except SimulationDiverged:
                 if halving == c.max_dt_halvings:
                     raise
-                converged, iterations = False, c.pv_max_iter
-            finally:
-                self.setup.dt = nominal
+                converged = False
             if converged or halving == c.max_dt_halvings:
                 break
             self._rewind()
-            self.positions = start_positions
             self.coupling_dt = 0.5 * self._tried_dt
-            rec.dt_halvings += 1
-        rec.unconverged_steps += not converged
-        rec.pv_iterations.append(iterations)
+            self.coupling_record.dt_halvings += 1
         if converged and iterations <= c.pv_max_iter // 3:
-            self.coupling_dt = min(2.0 * self.coupling_dt, nominal)
-        return sol, fill, dt, limiter
+            self.coupling_dt = min(2.0 * self.coupling_dt, self.setup.dt)
+        return sol, fill, dt, limiter, iterations, converged
+
+    def step_cap(self) -> float:
+        return min(self.setup.dt, self.coupling_dt)
 
     def _pv_step(self, state, blocked_guess):
         """One flow step at the front logic's dt with the P-V iteration; also returns the
@@ -213,7 +216,6 @@ class CoupledFlowModel(FlowModel):
         self.volume_change[:] = 0.0
         sol, fill, dt, limiter = super().implicit_step(state, blocked_guess)
         self._tried_dt = dt
-        start_positions = self.positions
         positions = self.move_grains(sol.pressure, dt)
         if c.one_way:
             return sol, fill, dt, limiter, 0, True
@@ -237,7 +239,6 @@ class CoupledFlowModel(FlowModel):
             if c.pv_rewind:
                 p_trial = self.quasi_newton.update(p_trial, calc.pressure)
                 self._rewind()
-                self.positions = start_positions
             else:
                 p_trial = calc.pressure
             positions = self.move_grains(p_trial, dt)

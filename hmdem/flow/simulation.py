@@ -179,9 +179,13 @@ class FlowModel:
         dp = pressure[self.pipe_a] - pressure[self.pipe_b]
         return np.where(orient != 0, orient * dp + pc, 0.0)
 
+    def step_cap(self) -> float:
+        """Longest step the implicit scheme may take: the nominal dt (a coupling may lower it)."""
+        return self.setup.dt
+
     def implicit_step(self, state: FlowState, blocked_guess: np.ndarray):
         g, orient, pc = self.pipe_properties(state)
-        dt = min(self.setup.dt, self.setup.t_max - state.t)
+        dt = min(self.step_cap(), self.setup.t_max - state.t)
         limiter = "nominal"
         front = orient != 0
         solved = None
