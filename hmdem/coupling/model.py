@@ -2,7 +2,8 @@
 Fig. 3a; digest §6, §9).
 
 Each flow step first runs the fixed-grain front logic (Eqs. 18-19 choose dt, the active set
-resolves Eq. 6) with the grain geometry of t^n: that gives p_trial. Then, at that dt:
+resolves Eq. 6) with the domain volumes changing at the rate of the last accepted step (a
+predictor; decisions.md #18): that gives p_trial. Then, at that dt:
 
 1. the pressure forces of p_trial (Eq. 8) are applied to the grains and the DEM is advanced by
    dt from t^n (by default the DEM is rewound to t^n before every iteration, so that each
@@ -82,6 +83,10 @@ class CouplingSetup:
     # interface quasi-Newton (IQN-ILS): each iteration is then a function evaluation of one
     # fixed point. False: the DEM continues and p_trial <- p_calc (the paper's likely practice)
     pv_rewind: bool = True
+    # the first p_trial of a step is solved with the domain volumes changing at the rate of the
+    # last accepted step (dV = rate x dt) rather than standing still: where the grains move
+    # smoothly the first iteration then already converges
+    pv_predictor: bool = True
 
 
 @dataclass
@@ -121,6 +126,8 @@ class CoupledFlowModel(FlowModel):
         self.opening_gap = float(initial_force[self.initially_closed].mean()) / grains.k_n
         self.detached = np.zeros(net.n_pipes, bool)  # F <= 0 at some accepted step (literal Eq. 14)
         self.max_gap = np.full(net.n_pipes, -np.inf)
+        self.volume_rate = np.zeros(net.n_domains)  # dV/dt of the last accepted step
+        self._predicting = False  # front-logic solves use dV = volume_rate x dt
         self._update_apertures()
 
     # ---- grains ----------------------------------------------------------------------------
@@ -209,12 +216,21 @@ class CoupledFlowModel(FlowModel):
     def step_cap(self) -> float:
         return min(self.setup.dt, self.coupling_dt)
 
+    def _trial(self, state, dt, g, orient, pc, blocked, hold=False):
+        if self._predicting:
+            self.volume_change[:] = self.volume_rate * dt
+        return super()._trial(state, dt, g, orient, pc, blocked, hold)
+
     def _pv_step(self, state, blocked_guess):
         """One flow step at the front logic's dt with the P-V iteration; also returns the
         iteration count and whether it converged."""
         c = self.coupling
         self.volume_change[:] = 0.0
-        sol, fill, dt, limiter = super().implicit_step(state, blocked_guess)
+        self._predicting = c.pv_predictor and not c.one_way
+        try:
+            sol, fill, dt, limiter = super().implicit_step(state, blocked_guess)
+        finally:
+            self._predicting = False
         self._tried_dt = dt
         positions = self.move_grains(sol.pressure, dt)
         if c.one_way:
@@ -248,6 +264,7 @@ class CoupledFlowModel(FlowModel):
         super()._accept(state, sol, fill, dt, limiter)
         volume = self.domain_volumes(self.positions)
         self.floored |= volume <= self.volume_floor
+        self.volume_rate = (volume - self.volume) / dt
         # saturation is a volume fraction: the invading volume is kept as the domain deforms
         invading = state.saturation * self.volume
         state.saturation = np.where(state.invaded, 1.0, np.clip(invading / volume, 0.0, 1.0))

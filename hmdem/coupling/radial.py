@@ -122,8 +122,8 @@ def start_grains(sc: RadialScenario):
     pk = sc.packing
     fixed = pk.fixed if len(pk.fixed) else None
     grains = DiscAssembly(pk.centres, pk.radii, fixed=fixed)
-    sc.coupling.stable_dem_step = grains.timestep
     grains.run(SETTLE_CYCLES)
+    sc.coupling.stable_dem_step = grains.timestep = grains.stable_timestep()
     return grains
 
 
