@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .flow.diagnostics import classify_regime, fractal_dimension
+from .flow.diagnostics import classify_regime, fractal_dimension, mass_radius_dimension
 from .plots import plot_pattern, plot_pressure
 from .rundir import atomic_run_directory, json_safe, write_toml
 
@@ -22,6 +22,15 @@ def pattern_fractal_dimension(sc, state) -> float:
     grain = float(np.median(net.pipe_length))  # r1 + r2: one grain diameter
     size = max(net.extent[1] - net.extent[0], net.extent[3] - net.extent[2])
     return fractal_dimension(net, state.saturation >= 0.5, grain, size / 4)[0]
+
+
+def radial_pattern_dimension(sc, state) -> float:
+    """D_f of a radial pattern: mass-radius dimension about the injection domain, from one grain
+    diameter to half the pattern's reach (box counting reads a filled disc as < 1.9 here)."""
+    net = sc.net
+    grain = float(np.median(net.pipe_length))
+    centre = net.domain_centroid[net.inlet_domains].mean(axis=0)
+    return mass_radius_dimension(net, state.saturation >= 0.5, centre, grain)[0]
 
 
 def summarize(sc, model, state, rec, d_f: float | None = None) -> dict:

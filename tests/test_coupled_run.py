@@ -208,11 +208,11 @@ def test_reduced_a3_halved_flow_step_keeps_regime_and_opened_contacts(reduced_ru
     from dataclasses import replace
 
     from hmdem.coupling.radial import classify_radial_regime
-    from hmdem.report import pattern_fractal_dimension
+    from hmdem.report import radial_pattern_dimension
 
     def outcome(sc, model, state):
         n = int(model.opened.sum())
-        return n, classify_radial_regime(n, pattern_fractal_dimension(sc, state))
+        return n, classify_radial_regime(n, radial_pattern_dimension(sc, state))
 
     sc, model, state, rec = reduced_runs["A3"]
     n_full, regime_full = outcome(sc, model, state)

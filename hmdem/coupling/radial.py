@@ -129,8 +129,9 @@ def start_grains(sc: RadialScenario):
 
 def classify_radial_regime(n_opened_contacts: int, fractal_dimension: float) -> str:
     """Huang et al.'s three regimes from the run: no opened contact is infiltration; opened
-    contacts with a compact front (D_f >= 1.90, digest H1/H5) are infiltration-dominated with
-    fracturing; opened contacts with a fingered front are fracturing-dominated."""
+    contacts with a compact front (D_f >= 1.90, digest H1/H5; D_f the mass-radius dimension
+    about the port, decisions.md #27) are infiltration-dominated with fracturing; opened
+    contacts with a fingered front are fracturing-dominated."""
     if n_opened_contacts == 0:
         return "infiltration"
     if fractal_dimension >= 1.90:
