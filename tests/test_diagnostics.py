@@ -39,3 +39,16 @@ def test_finger_has_a_low_dimension(huang_network):
 def test_empty_pattern_has_no_dimension(huang_network):
     net, centre, grain = huang_network
     assert np.isnan(mass_radius_dimension(net, np.zeros(net.n_domains, bool), centre, grain)[0])
+
+
+@pytest.mark.parametrize("opened, d_f, regime", [
+    (0, float("nan"), "infiltration"),
+    (0, 1.5, "infiltration"),
+    (3, 1.95, "infiltration-dominated with fracturing"),
+    (3, 1.80, "fracturing-dominated"),
+    (3, float("nan"), "undetermined"),  # a pattern too small to measure is not called fingered
+])
+def test_radial_regime_label(opened, d_f, regime):
+    from hmdem.coupling.radial import classify_radial_regime
+
+    assert classify_radial_regime(opened, d_f) == regime

@@ -8,6 +8,8 @@ perimeter as Sigma, a0 as the mean aperture and L = the sample side (digest §10
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 from importlib import resources
 
@@ -131,9 +133,12 @@ def classify_radial_regime(n_opened_contacts: int, fractal_dimension: float) -> 
     """Huang et al.'s three regimes from the run: no opened contact is infiltration; opened
     contacts with a compact front (D_f >= 1.90, digest H1/H5; D_f the mass-radius dimension
     about the port, decisions.md #27) are infiltration-dominated with fracturing; opened
-    contacts with a fingered front are fracturing-dominated."""
+    contacts with a fingered front are fracturing-dominated; "undetermined" when contacts opened
+    but the pattern is too small to measure (D_f nan: it reaches less than two grain sizes)."""
     if n_opened_contacts == 0:
         return "infiltration"
+    if not math.isfinite(fractal_dimension):
+        return "undetermined"
     if fractal_dimension >= 1.90:
         return "infiltration-dominated with fracturing"
     return "fracturing-dominated"

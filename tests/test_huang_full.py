@@ -1,0 +1,120 @@
+"""The Huang cases at paper size (issue 3; digest seed004 §13.3 H1, H2, H4, H6, H10): `make validate`.
+
+Each case runs once per session, through the same command a user types
+(``python -m hmdem.hele_shaw radial --case X``), to breakthrough; the assertions read the run
+directory. Wall times on this 2-core machine are in BENCHMARKS.md: B3 34 min, B3 one-way under
+a minute, A1 and A3 more than an hour each (neither has been run to breakthrough at full size
+yet; both slow down once the front is ~75 % of the way out). Tolerances are the digest's
+(§13.3); where the model misses a claim the test is a strict expected failure that names the
+measured figure, so that a fix shows up.
+"""
+
+import csv
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+pytestmark = [pytest.mark.yade, pytest.mark.slow]
+
+
+@pytest.fixture(scope="module")
+def huang(tmp_path_factory):
+    """case -> (summary dict, time series columns); runs each case on first use."""
+    root = tmp_path_factory.mktemp("huang")
+    done = {}
+
+    def run(case, *flags):
+        key = (case, *flags)
+        if key not in done:
+            out = root / "-".join(key).replace("--", "")
+            cmd = [sys.executable, "-m", "hmdem.hele_shaw", "radial", "--case", case, *flags, "--out", str(out),
+                   "--quiet"]
+            subprocess.run(cmd, check=True)
+            summary = json.loads((out / "summary.json").read_text())
+            with open(out / "timeseries.csv") as f:
+                rows = list(csv.DictReader(f))
+            series = {k: np.array([float(r[k]) for r in rows]) for k in ("t", "p_in_mean")}
+            done[key] = summary, series
+        return done[key]
+
+    return run
+
+
+def pressure_on_grid(series, points=10):
+    """Injection pressure at ``points`` equally spaced times (the paper's figures' resolution)."""
+    t, p = series["t"], series["p_in_mean"]
+    return np.interp(np.linspace(0.0, t[-1], points + 1)[1:], t, p)
+
+
+def sudden_drops(series, points=200, fraction=0.02):
+    """Falls of more than ``fraction`` of the running peak between neighbouring times of a
+    ``points`` grid (H10's "sudden drops", at 0.5 % of the run per grid interval)."""
+    p = pressure_on_grid(series, points)
+    return int(np.sum(np.diff(p) < -fraction * np.maximum.accumulate(p)[1:]))
+
+
+def test_a1_infiltration_with_monotonic_pressure_and_circular_front(huang):
+    s, series = huang("A1")
+    assert s["status"] == "breakthrough"
+    assert np.all(np.diff(pressure_on_grid(series)) >= 0.0)  # H1: monotonic rise
+    assert s["fractal_dimension"] >= 1.90  # H1: circular front
+
+
+@pytest.mark.xfail(strict=True, reason="known model discrepancy, issue 3 open: at paper size A1 had opened 3 "
+                   "contacts (separations 0.10-0.26 um) by 76 % of its run (BENCHMARKS.md), the paper none")
+def test_a1_opens_no_contact(huang):
+    assert huang("A1")[0]["n_opened_contacts"] == 0  # H1: zero fractures
+
+
+def test_breakthrough_time_ratio_a1_a3(huang):
+    ratio = huang("A1")[0]["breakthrough_time_s"] / huang("A3")[0]["breakthrough_time_s"]
+    assert 15.0 <= ratio <= 25.0  # H6: 20 +- 5, the injection velocity ratio
+
+
+def test_a3_fractures_near_the_port(huang):
+    s, _ = huang("A3")
+    assert s["status"] == "breakthrough"
+    assert s["n_opened_contacts"] > 0  # H2
+
+
+@pytest.mark.xfail(strict=True, reason="known model discrepancy, issue 3 open: A3/A1 peak ratio 12-15 (A1 peaks "
+                   "low at Q from the literal Ca*, decisions.md #21; reduced sample 12.2)")
+def test_a3_a1_peak_ratio(huang):
+    ratio = huang("A3")[0]["peak_injection_pressure_pa"] / huang("A1")[0]["peak_injection_pressure_pa"]
+    assert 4.0 <= ratio <= 10.0  # H2: 6.6 in the paper
+
+
+def test_b3_opens_contacts_beyond_a3(huang):
+    b3, a3 = huang("B3")[0], huang("A3")[0]
+    assert b3["status"] == "breakthrough"
+    assert b3["n_opened_contacts"] > a3["n_opened_contacts"] > 0  # H2, H4: fracturing grows with Ca*
+
+
+@pytest.mark.xfail(strict=True, reason="known model discrepancy, issue 3 open: the B3 invaded zone is an "
+                   "elongated compact blob (mass-radius D_f 1.92 >= 1.90), not fingers: 'infiltration-dominated "
+                   "with fracturing'")
+def test_b3_fracturing_dominated(huang):
+    assert huang("B3")[0]["regime"] == "fracturing-dominated"  # H4: finger-like front
+
+
+@pytest.mark.xfail(strict=True, reason="known model discrepancy, issue 3 open: the B3 pressure rises to "
+                   "breakthrough (2.5 -> 5.5 MPa on a 10-point grid); opened contacts separate by a median "
+                   "0.3-0.7 um, too little to carry the flow (BENCHMARKS.md)")
+def test_b3_early_peak_then_decline(huang):
+    p = pressure_on_grid(huang("B3")[1])
+    # H4: early peak, then decline to a plateau: the peak in the first half of the run and the
+    # pressure at breakthrough below 80 % of it
+    assert np.argmax(p) < len(p) // 2
+    assert p[-1] < 0.8 * p.max()
+
+
+@pytest.mark.xfail(strict=True, reason="known model discrepancy, issue 3 open: both B3 curves are nearly "
+                   "smooth, 3 (two-way) vs 4 (one-way) drops of > 2 % on a 200-point grid")
+def test_b3_two_way_smooth_where_one_way_drops(huang):
+    # H10: the P-V iteration gives a smooth B3 pressure curve, the one-way variant shows drops
+    two_way, one_way = huang("B3")[1], huang("B3", "--one-way")[1]
+    assert sudden_drops(two_way) == 0
+    assert sudden_drops(one_way) > 0
