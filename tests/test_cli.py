@@ -154,7 +154,12 @@ def test_radial_run_directory_contract(tmp_path):
     for key in ("n_opened_contacts", "peak_injection_pressure_pa", "regime", "mean_pv_iterations", "dem_cycles",
                 "lowest_path_resistance_gpa_s_per_m2", "dissipated_fraction"):
         assert key in summary
-    assert summary["regime"] in ("infiltration", "infiltration-dominated with fracturing", "fracturing-dominated")
+    # Huang's three regimes; a run stopped before its pattern reaches two grain sizes has no
+    # D_f, and with contacts opened it is "undetermined" rather than called fingered
+    labels = ("infiltration", "infiltration-dominated with fracturing", "fracturing-dominated")
+    d_f = summary["fractal_dimension"]
+    assert summary["regime"] in labels or (summary["regime"] == "undetermined" and (d_f is None or d_f != d_f))
+    assert "fractal_dimension_box_counting" in summary  # App. E's figure beside the sandbox one
     assert summary["steps"] == 12 and summary["max_mass_balance_error"] < 1e-10
     fractures = np.load(out / "fractures.npz")
     assert fractures["opened"].sum() == summary["n_opened_contacts"]
