@@ -9,7 +9,6 @@ perimeter as Sigma, a0 as the mean aperture and L = the sample side (digest §10
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass
 from importlib import resources
 

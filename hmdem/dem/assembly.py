@@ -97,7 +97,7 @@ class DiscAssembly:
         ``loadTmp``). The collider re-sorts from whatever order it last saw, so after a rewind it
         finds the same contacts; trajectories after an engine-less rewind match a straight run to
         ~1e-18 m with identical contact pairs (summation order may differ), checked over 30
-        rewinds in which ~450 contacts formed (tests/test_coupling.py covers the rewind)."""
+        rewinds in which ~450 contacts formed (tests/test_coupled_run.py repeats the check)."""
         engines = self._O.engines
         self._O.engines = []
         try:
