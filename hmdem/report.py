@@ -16,10 +16,15 @@ from .plots import plot_pattern, plot_pressure
 from .rundir import atomic_run_directory, json_safe, write_toml
 
 
+def grain_diameter(net) -> float:
+    """The median pipe length r1 + r2: the smallest scale of the pattern dimensions."""
+    return float(np.median(net.pipe_length))
+
+
 def pattern_fractal_dimension(sc, state) -> float:
     """D_f of the invaded domains, box sizes from the grain scale to a quarter of the sample."""
     net = sc.net
-    grain = float(np.median(net.pipe_length))  # r1 + r2: one grain diameter
+    grain = grain_diameter(net)
     size = max(net.extent[1] - net.extent[0], net.extent[3] - net.extent[2])
     return fractal_dimension(net, state.saturation >= 0.5, grain, size / 4)[0]
 
@@ -28,9 +33,8 @@ def radial_pattern_dimension(sc, state) -> float:
     """D_f of a radial pattern: mass-radius dimension about the injection domain, from one grain
     diameter to half the pattern's reach (box counting reads a filled disc as < 1.9 here)."""
     net = sc.net
-    grain = float(np.median(net.pipe_length))
     centre = net.domain_centroid[net.inlet_domains].mean(axis=0)
-    return mass_radius_dimension(net, state.saturation >= 0.5, centre, grain)[0]
+    return mass_radius_dimension(net, state.saturation >= 0.5, centre, grain_diameter(net))[0]
 
 
 def summarize(sc, model, state, rec, d_f: float | None = None) -> dict:

@@ -22,8 +22,9 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
     initial_positions = sc.packing.centres.copy()
     # D_f on the reference configuration: a rearranged sample can fold triangles over each other.
     # The regime reads the mass-radius dimension; App. E's box counting is reported beside it
-    d_f = radial_pattern_dimension(sc, state) if state.invaded.any() else float("nan")
-    d_box = pattern_fractal_dimension(sc, state) if state.invaded.any() else float("nan")
+    d_f = d_box = float("nan")
+    if state.invaded.any():
+        d_f, d_box = radial_pattern_dimension(sc, state), pattern_fractal_dimension(sc, state)
     # draw and export the deformed sample
     net.points = positions
     net.domain_centroid = model.geometry.centroids(positions)

@@ -54,12 +54,16 @@ def fractal_dimension(net: Network, domain_mask: np.ndarray, smallest: float, la
     sizes = np.unique(np.round(np.geomspace(smallest / h, largest / h, n_scales)).astype(int))
     sizes = sizes[sizes >= 1]
     counts = box_counts(image, sizes)
-    ok = counts > 0
+    return -mean_log_slope(sizes, counts), sizes * h, counts
+
+
+def mean_log_slope(scale: np.ndarray, count: np.ndarray) -> float:
+    """Mean of the local slopes d log(count) / d log(scale) over the non-zero counts (the
+    paper's "local fractal dimension" averaging); nan with fewer than two."""
+    ok = count > 0
     if ok.sum() < 2:
-        return float("nan"), sizes * h, counts
-    logs, logn = np.log(sizes[ok]), np.log(counts[ok])
-    local = -np.diff(logn) / np.diff(logs)
-    return float(local.mean()), sizes * h, counts
+        return float("nan")
+    return float(np.mean(np.diff(np.log(count[ok])) / np.diff(np.log(scale[ok]))))
 
 
 def mass_radius_dimension(net: Network, domain_mask: np.ndarray, centre, smallest: float,
@@ -83,11 +87,7 @@ def mass_radius_dimension(net: Network, domain_mask: np.ndarray, centre, smalles
         return float("nan"), np.zeros(0), np.zeros(0, int)
     radii = np.geomspace(smallest, 0.5 * distance.max(), n_scales)
     mass = np.searchsorted(np.sort(distance), radii, side="right")
-    ok = mass > 0
-    if ok.sum() < 2:
-        return float("nan"), radii, mass
-    local = np.diff(np.log(mass[ok])) / np.diff(np.log(radii[ok]))
-    return float(local.mean()), radii, mass
+    return mean_log_slope(radii, mass), radii, mass
 
 
 VISCOUS_TO_CAPILLARY_THRESHOLD = 10.0
