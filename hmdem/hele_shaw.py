@@ -52,6 +52,9 @@ def build_parser() -> argparse.ArgumentParser:
     rad.add_argument("--viscosity-ratio", type=positive_number,
                      help="M = eta_inv / eta_air; eta_inv = M x 0.018 cP")
     rad.add_argument("--ca-star", type=positive_number, help="modified capillary number Ca* (seed 004 Eq. 24)")
+    rad.add_argument("--sigma", type=positive_number,
+                     help="inlet perimeter Sigma of Ca* [m] (default 0.2 x sample side: the paper's 0.25 mm of "
+                          "1.25 mm; the injection domain's own perimeter is in summary.json)")
     rad.add_argument("--one-way", action="store_true",
                      help="sequential coupling: grains move, dV is left out of the pressure equation")
     rad.add_argument("--dt", type=positive_number, help="nominal flow step [s] (default per case, Table 4)")
@@ -161,7 +164,7 @@ def run_radial(args) -> int:
         case = replace_case(case, dt=args.dt)
     packing = DiscPacking.load(args.packing) if args.packing else None
     sc = build_radial_scenario(case, packing, ca_star=args.ca_star, viscosity_ratio=args.viscosity_ratio,
-                               one_way=args.one_way)
+                               one_way=args.one_way, sigma=args.sigma)
     if args.dem_cycles is not None:
         sc.coupling.dem_cycles_per_step = int(args.dem_cycles)
     if args.pv_tol is not None:

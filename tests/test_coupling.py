@@ -156,3 +156,30 @@ def test_quasi_newton_reuses_the_secants_of_earlier_steps_of_the_same_dt():
     other_dt = solve(qn, 5e-7, rng.normal(size=n))
     assert again < first / 2
     assert other_dt >= first - 2
+
+
+def test_radial_scenario_fixes_every_boundary_grain():
+    # digest §11.2: "all boundary grains are fixed". Every grain of a contact on the outer face
+    # of the contact graph, plus the compaction's wall ring; interior grains stay free
+    from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario
+    from hmdem.network.network import OUTSIDE
+
+    sc = build_radial_scenario(RADIAL_CASES["A1"])
+    hull = np.unique(sc.net.pipe_grains[(sc.net.pipe_domains == OUTSIDE).any(axis=1)])
+    assert sc.fixed[hull].all() and sc.fixed[sc.packing.fixed].all()
+    assert sc.fixed.sum() == len(np.union1d(hull, np.flatnonzero(sc.packing.fixed)))
+    inlet_grains = np.unique(sc.net.pipe_grains[(sc.net.pipe_domains == sc.net.inlet_domains[0]).any(axis=1)])
+    assert not sc.fixed[inlet_grains].any()
+
+
+def test_radial_injection_rate_from_the_papers_inlet_perimeter():
+    # decisions.md #21: Sigma = 0.2 L (the paper's 0.25 mm of 1.25 mm, digest §10.3), so
+    # Q = Ca* 0.2 gamma a0 / eta_inv, independent of the sample size; A1 gets 3.04e-5 m^3/s per m, and
+    # the paper's ratios A3 / A1 = 32.3 / 1.6 and B1 = A1 (Ca* and eta both x 35.2) hold exactly
+    from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario
+
+    rate = {c: build_radial_scenario(RADIAL_CASES[c]).setup.rate for c in ("A1", "A3", "B1")}
+    assert rate["A1"] == pytest.approx(1.6 * 0.2 * 63e-3 * 7.53e-6 / 5e-3, rel=1e-12)
+    assert 2e-5 <= rate["A1"] <= 4e-5  # digest §10.3: 3 (+-1) e-5 from the paper's A1 pressure and time
+    assert rate["A3"] / rate["A1"] == pytest.approx(32.3 / 1.6, rel=1e-12)
+    assert rate["B1"] == pytest.approx(rate["A1"], rel=0.002)  # 56.3 / 1.6 = 35.19 vs 176 / 5 = 35.2

@@ -11,7 +11,7 @@ from ..plots import plot_force_chains
 from ..report import pattern_fractal_dimension, radial_pattern_dimension, write_run
 from .geometry import contact_gaps
 from .micromechanics import lowest_path_resistance, pipe_resistance
-from .radial import classify_radial_regime
+from .radial import classify_radial_regime, domain_perimeter
 
 GPA = 1e9
 
@@ -59,6 +59,7 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
         "dem_cycles_per_step": cr.dem_cycles / max(rec.steps, 1),
         "one_way": sc.coupling.one_way,
         "sigma_m": sc.sigma,
+        "inlet_domain_perimeter_m": domain_perimeter(net, int(net.inlet_domains[0])),
         "confining_stress_pa": sc.packing.confining_stress,
     }
 
@@ -71,12 +72,12 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
         plot_force_chains(tmp / "force_chains.png", positions, grains.radii, pairs, forces,
                           f"{sc.case.name}: contact forces at t = {state.t:.4g} s "
                           f"({int(opened.sum())} opened contacts in red on pattern.png)",
-                          fixed=sc.packing.fixed)
+                          fixed=sc.fixed)
 
     config = {"coupling": {k: v for k, v in vars(sc.coupling).items() if k != "aperture_law"},
               "aperture_law": vars(sc.coupling.aperture_law),
               "dem": {"timestep_s": grains.timestep, "stable_timestep_s": sc.coupling.stable_dem_step,
-                      "n_grains": len(grains.radii), "n_fixed": int(np.sum(sc.packing.fixed))}}
+                      "n_grains": len(grains.radii), "n_fixed": int(np.sum(sc.fixed))}}
     overlay = positions[g[opened]]
     return write_run(out, sc, model, state, rec, seed=0, argv=argv, summary_extra=extra, extra_files=files,
                      overlay=overlay, config_extra=config)

@@ -2,8 +2,9 @@
 
 Wetting water-glycerol (5 cP, group A; 176 cP, group B) injected at the centre of an
 air-filled, servo-compacted 1.25 mm sample of 1,395 discs, r in [13, 21.6] um, boundary grains
-fixed, outflow domains (p = 0) all round. Q follows from Ca* with the injection domain's
-perimeter as Sigma, a0 as the mean aperture and L = the sample side (digest §10.3 recipe).
+fixed, outflow domains (p = 0) all round. Q follows from Ca* (Eq. 24) with a0 as the mean
+aperture, L = the sample side and Sigma = 0.2 L: the paper's inlet perimeter, ~0.25 mm of its
+1.25 mm sample, implied by its A1 pressure and breakthrough time (digest §10.3; decisions.md #21).
 """
 
 from __future__ import annotations
@@ -19,12 +20,15 @@ from ..flow.fluids import FluidPair
 from ..flow.simulation import FlowSetup
 from ..network import build_contact_network, find_contacts
 from ..network.boundaries import central_injection_boundaries
+from ..network.contact_graph import hull_grains
 from ..network.network import Network
 from ..network.packing import DiscPacking
 from .apertures import ApertureLaw
 from .model import CouplingSetup
 
 AIR_VISCOSITY = 0.018 * CP
+# Sigma / L of Eq. 24: the paper's ~0.25 mm inlet perimeter on its 1.25 mm sample (digest §10.3)
+PAPER_SIGMA_OVER_LENGTH = 0.2
 SETTLE_CYCLES = 2000  # relaxation after loading the packing (contact shear history is not stored)
 
 
@@ -92,6 +96,7 @@ class RadialScenario:
     sigma: float
     length: float
     ca_star: float
+    fixed: np.ndarray  # boundary grains held in place (the wall ring and the contact graph's hull)
 
     @property
     def packing_radii(self) -> np.ndarray:
@@ -100,20 +105,27 @@ class RadialScenario:
 
 def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, ca_star: float | None = None,
                           viscosity_ratio: float | None = None, one_way: bool = False,
-                          aperture_law: ApertureLaw | None = None) -> RadialScenario:
-    """Network, flow set-up and coupling parameters of a radial case (no DEM yet, no YADE)."""
+                          aperture_law: ApertureLaw | None = None, sigma: float | None = None) -> RadialScenario:
+    """Network, flow set-up and coupling parameters of a radial case (no DEM yet, no YADE).
+    ``sigma``: the Eq. 24 inlet perimeter Sigma [m] (default :data:`PAPER_SIGMA_OVER_LENGTH` x L)."""
     pk = packing or DiscPacking.load(default_huang_packing_path())
     net = radial_network(pk, case.contact_gap)
     eta_inv = case.viscosity_inv if viscosity_ratio is None else viscosity_ratio * AIR_VISCOSITY
     fluids = huang_fluids(eta_inv)
     law = aperture_law or ApertureLaw()
-    sigma = domain_perimeter(net, int(net.inlet_domains[0]))
     length = float(pk.box[0])
+    sigma = PAPER_SIGMA_OVER_LENGTH * length if sigma is None else sigma
     ca = case.ca_star if ca_star is None else ca_star
     rate = rate_from_ca_star(ca, fluids, sigma, length, law.residual_aperture)
     setup = FlowSetup(fluids, rate, case.dt)
     coupling = CouplingSetup(aperture_law=law, one_way=one_way)
-    return RadialScenario(case, pk, net, setup, coupling, sigma, length, ca)
+    # "all boundary grains are fixed, imitating the sealed cell edges" (digest §11.2): the grains
+    # that touched a compaction wall and every grain on the contact graph's hull. A hull grain
+    # left free has fluid on one side only and nothing outside it: it is pushed out of the cell
+    fixed = hull_grains(net)
+    if len(pk.fixed):
+        fixed |= pk.fixed
+    return RadialScenario(case, pk, net, setup, coupling, sigma, length, ca, fixed)
 
 
 def start_grains(sc: RadialScenario):
@@ -121,8 +133,7 @@ def start_grains(sc: RadialScenario):
     from ..dem.assembly import DiscAssembly
 
     pk = sc.packing
-    fixed = pk.fixed if len(pk.fixed) else None
-    grains = DiscAssembly(pk.centres, pk.radii, fixed=fixed)
+    grains = DiscAssembly(pk.centres, pk.radii, fixed=sc.fixed)
     grains.run(SETTLE_CYCLES)
     sc.coupling.stable_dem_step = grains.timestep = grains.stable_timestep()
     return grains

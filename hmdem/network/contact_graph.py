@@ -129,6 +129,14 @@ def build_contact_network(centres: np.ndarray, radii: np.ndarray, contacts: np.n
     )
 
 
+def hull_grains(net: Network) -> np.ndarray:
+    """Mask of the grains on the outer boundary of the contact graph: both grains of every contact
+    that borders the outer face (the sample's boundary grains)."""
+    mask = np.zeros(len(net.points), bool)
+    mask[net.pipe_grains[(net.pipe_domains == OUTSIDE).any(axis=1)].ravel()] = True
+    return mask
+
+
 def boundary_domains(net: Network) -> np.ndarray:
     """Domains that share a triangulation edge with the outer face (they touch the sample edge)."""
     nbr = net.triangle_neighbors
