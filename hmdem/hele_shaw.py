@@ -41,7 +41,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="M = eta_inv / eta_def; eta_def is kept, eta_inv = M eta_def")
     lin.add_argument("--mean-aperture", type=positive_number, help="mean pipe aperture [m] (default 0.42e-3)")
     lin.add_argument("--seed", type=non_negative_int, default=0, help="aperture field seed (default 0)")
-    lin.add_argument("--dt", type=positive_number, help="nominal flow step [s] (default per case)")
+    lin.add_argument("--dt", type=positive_number,
+                     help="nominal flow step [s] (default per case, scaled with the rate when --ca-star or "
+                          "--viscosity-ratio change it)")
     lin.add_argument("--scheme", choices=("implicit", "explicit"), default="implicit")
     lin.add_argument("--inlet", choices=("manifold", "split"), default="manifold",
                      help="manifold: inflow domains share one pressure (default); split: Q/N_in each")
@@ -81,15 +83,26 @@ def add_run_options(sub: argparse.ArgumentParser, default_packing: str) -> None:
 
 
 def make_case(args):
-    """The named case with the command-line overrides applied."""
+    """The named case with the command-line overrides applied.
+
+    Without ``--dt``, a Ca* or viscosity override scales the case's nominal step with the fill
+    time: Q = Ca* Sigma gamma a / (eta_inv L) (Eq. 24), so dt x (Ca*_case / eta_case) /
+    (Ca* / eta). The front criteria (Eqs. 18-19) shorten steps where they must; the nominal
+    step only sets how finely a smooth stretch is resolved, as the same fraction of the run."""
     case = CASES[args.case]
     changes = {k: getattr(args, k) for k in ("dt", "mean_aperture", "t_max") if getattr(args, k) is not None}
+    fluids = case.fluids
     if args.viscosity_ratio is not None:
-        changes["fluids"] = replace(case.fluids, viscosity_inv=args.viscosity_ratio * case.fluids.viscosity_def)
+        fluids = replace(case.fluids, viscosity_inv=args.viscosity_ratio * case.fluids.viscosity_def)
+        changes["fluids"] = fluids
+    ca_star = case.ca_star if args.ca_star is None else args.ca_star
     if args.ca_star is not None:
         changes.update(ca_star=args.ca_star, rate=None)
     if args.rate is not None:
         changes["rate"] = args.rate
+    elif args.dt is None and case.ca_star is not None:
+        rate_factor = (ca_star / fluids.viscosity_inv) / (case.ca_star / case.fluids.viscosity_inv)
+        changes["dt"] = case.dt / rate_factor
     return replace(case, **changes)
 
 
@@ -119,7 +132,8 @@ class FrontProgress:
         self.bar.close()
 
 
-def run_linear(args) -> int:
+def run_linear(args, argv: list[str] | None = None) -> int:
+    """One linear run from parsed arguments; ``argv`` (default sys.argv) goes to config.toml."""
     from .report import write_run
     from .scenario import build_scenario
     from .flow.simulation import FlowModel
@@ -141,7 +155,7 @@ def run_linear(args) -> int:
     state, rec = model.run(progress=bar)
     if bar is not None:
         bar.close(rec.status == "breakthrough")
-    summary = write_run(out, sc, model, state, rec, seed=args.seed, argv=sys.argv[1:])
+    summary = write_run(out, sc, model, state, rec, seed=args.seed, argv=sys.argv[1:] if argv is None else argv)
     print(f"{case.name}: {rec.status} at t = {state.t:.4g} s after {rec.steps} steps; regime: {summary['regime']}, "
           f"D_f = {summary['fractal_dimension']:.3f}, peak injection pressure {summary['peak_injection_pressure_pa']:.4g} Pa")
     print(f"run directory: {out}")

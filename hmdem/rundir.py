@@ -63,3 +63,17 @@ def atomic_run_directory(final: Path):
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     os.replace(tmp, final)
+
+
+def write_text_atomic(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary sibling file and a rename: a reader (or a
+    kill) sees the old content or the new, never a part."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise

@@ -1,0 +1,171 @@
+"""Command line of hmdem's sweeps.
+
+    python -m hmdem.sweep lenormand [--log-m A:B:N] [--log-ca A:B:N] [--seeds K] [--workers W]
+                                    [--scheduler ADDRESS] [--packing NPZ] [--out DIR] [--quiet]
+    python -m hmdem.sweep collect DIR
+
+``lenormand`` runs the linear Hele-Shaw model over a grid of log10 M and log10 Ca* with K
+aperture seeds each; re-running it with the same ``--out`` resumes (finished runs are kept,
+failed ones retried). ``collect`` writes sweep.csv and phase_diagram.png for any directory of
+run directories, e.g. a ``yade-batch`` job of ``yade_scripts/hele_shaw_linear.py``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import time
+from pathlib import Path
+
+from .. import __version__
+from ..cli import InputError, OneLineParser
+
+PROG = "python -m hmdem.sweep"
+DEFAULT_LOG_M = "-5:2:5"
+DEFAULT_LOG_CA = "-8:2:6"
+
+
+class _Parser(OneLineParser):
+    command = PROG
+
+
+def axis(text: str):
+    from .grid import parse_axis
+
+    try:
+        return parse_axis(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog=PROG, description=__doc__.split("\n")[0])
+    parser.add_argument("--version", action="version", version=__version__)
+    sub = parser.add_subparsers(dest="command", parser_class=_Parser)
+    len_ = sub.add_parser("lenormand", help="the Lenormand phase diagram: linear runs over (M, Ca*) and seeds")
+    len_.add_argument("--log-m", type=axis, default=axis(DEFAULT_LOG_M),
+                      help=f"log10 M = log10(eta_inv / eta_def) as START:STOP:COUNT (default {DEFAULT_LOG_M})")
+    len_.add_argument("--log-ca", type=axis, default=axis(DEFAULT_LOG_CA),
+                      help=f"log10 Ca* (seed 004 Eq. 24) as START:STOP:COUNT (default {DEFAULT_LOG_CA})")
+    len_.add_argument("--seeds", type=positive_int, default=1, help="aperture seeds per point, 0..K-1 (default 1)")
+    len_.add_argument("--workers", type=positive_int,
+                      help="worker processes of the embedded Dask cluster (default: one per core)")
+    len_.add_argument("--scheduler", help="address of an existing Dask scheduler, e.g. tcp://host:8786")
+    len_.add_argument("--packing", type=Path, help="packing .npz (default: the shipped 65 mm packing)")
+    len_.add_argument("--out", type=Path, help="sweep directory (default runs/lenormand-<time>); an existing "
+                                              "sweep directory is resumed")
+    len_.add_argument("--quiet", action="store_true", help="no progress bar")
+    col = sub.add_parser("collect", help="sweep.csv and phase_diagram.png of a directory of run directories")
+    col.add_argument("dir", type=Path, help="a sweep directory or a yade-batch output directory")
+    return parser
+
+
+def write_tables(root: Path, rows: list[dict] | None = None) -> list[dict]:
+    """sweep.csv and phase_diagram.png of ``root`` (``rows``: already collected); the rows."""
+    from .boundaries import capillary_crossover
+    from .phase_diagram import plot_phase_diagram
+    from .table import collect, write_csv
+
+    rows = collect(root) if rows is None else rows
+    write_csv(root / "sweep.csv", rows)
+    finished = [root / r["run"] for r in rows if r["status"] != "failed"]
+    # the crossover lines are drawn for the network of the first finished run (seed 0 first)
+    crossover = capillary_crossover(finished[0]) if finished else None
+    plot_phase_diagram(root / "phase_diagram.png", rows, crossover)
+    return rows
+
+
+def run_lenormand(args) -> int:
+    from .execute import run_sweep
+    from .grid import lenormand_points
+    from .manifest import DONE, FAILED, Manifest
+
+    if args.packing is not None and not args.packing.is_file():
+        raise InputError(f"--packing: no such file {str(args.packing)!r}")
+    out = args.out or Path("runs") / f"lenormand-{time.strftime('%Y%m%d-%H%M%S')}"
+    if out.exists() and not (out / "manifest.json").is_file() and any(out.iterdir()):
+        raise InputError(f"--out: {str(out)!r} exists and is not a sweep directory; choose a new one")
+    spec = {"kind": "lenormand", "log_m": args.log_m.spec(), "log_ca_star": args.log_ca.spec(),
+            "seeds": args.seeds, "packing": str(args.packing) if args.packing else None}
+    points = lenormand_points(args.log_m, args.log_ca, args.seeds)
+    try:
+        manifest = Manifest.open(out, spec, points)
+    except ValueError as exc:
+        raise InputError(f"--out: {exc}") from None
+    print(f"sweep directory: {out} ({len(points)} runs, {len(manifest.todo())} to do)", file=sys.stderr)
+    interrupted = False
+    try:
+        counts = run_sweep(manifest, args.packing, args.workers, args.scheduler, progress=not args.quiet)
+    except KeyboardInterrupt:
+        interrupted = True
+        manifest.reconcile()
+        counts = manifest.counts()
+    rows = write_tables(out)
+    print(f"{counts[DONE]} done, {counts[FAILED]} failed, {len(points) - counts[DONE] - counts[FAILED]} not run; "
+          f"{len(rows)} rows in {out / 'sweep.csv'}")
+    if interrupted:
+        print(f"{PROG}: interrupted; run the same command again to finish the sweep", file=sys.stderr)
+        return 130
+    return 1 if counts[FAILED] else 0
+
+
+def run_collect(args) -> int:
+    if not args.dir.is_dir():
+        raise InputError(f"dir: no such directory {str(args.dir)!r}")
+    from .table import collect
+
+    rows = collect(args.dir)
+    if not rows:
+        raise InputError(f"dir: no run directories (summary.json + config.toml) under {str(args.dir)!r}")
+    write_tables(args.dir, rows)
+    print(f"{len(rows)} runs -> {args.dir / 'sweep.csv'}, {args.dir / 'phase_diagram.png'}")
+    return 0
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+def join_axis_values(argv: list[str]) -> list[str]:
+    """``--log-m -5:2:5`` -> ``--log-m=-5:2:5``: argparse would take a value starting with '-'
+    (a negative START) for an option."""
+    out, i = [], 0
+    while i < len(argv):
+        if argv[i] in ("--log-m", "--log-ca") and i + 1 < len(argv):
+            out.append(f"{argv[i]}={argv[i + 1]}")
+            i += 2
+        else:
+            out.append(argv[i])
+            i += 1
+    return out
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(join_axis_values(list(sys.argv[1:] if argv is None else argv)))
+    signal.signal(signal.SIGTERM, _interrupt)  # a batch system's kill ends the sweep like Ctrl-C
+    try:
+        if args.command == "lenormand":
+            return run_lenormand(args)
+        if args.command == "collect":
+            return run_collect(args)
+    except InputError as exc:
+        print(f"{PROG}: {exc}", file=sys.stderr)
+        return 2
+    parser.print_help()
+    return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

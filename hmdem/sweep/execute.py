@@ -1,0 +1,112 @@
+"""Running the open points of a sweep on Dask: an embedded LocalCluster sized to the machine,
+or an existing scheduler (``tcp://host:8786``) whose workers need only ``pip install hmdem``.
+
+Each point is one task (:func:`.packed.run_packed`); the client unpacks each finished run
+directory into the sweep directory and updates the manifest, so a killed sweep loses only the
+runs in flight. A task whose worker dies is resubmitted by the Dask scheduler (up to its
+``allowed-failures``), then recorded as failed with the error text, like a run that raised.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+import traceback
+from pathlib import Path
+
+from .manifest import DONE, FAILED, PENDING, Manifest
+from .packed import run_packed, unpack_directory
+
+
+def default_workers() -> int:
+    """One single-threaded worker process per core."""
+    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
+
+
+def error_text(exc: BaseException) -> str:
+    """One line naming the exception, plus the innermost frame when there is a traceback."""
+    text = f"{type(exc).__name__}: {exc}".strip()
+    frames = traceback.extract_tb(exc.__traceback__) if exc.__traceback__ else []
+    if frames:
+        last = frames[-1]
+        text += f" (at {Path(last.filename).name}:{last.lineno} in {last.name})"
+    return text
+
+
+class SweepProgress:
+    """tqdm bar over all runs of the sweep: done / failed / remaining, with tqdm's ETA."""
+
+    def __init__(self, manifest: Manifest, enabled: bool = True):
+        self.manifest = manifest
+        self.bar = None
+        if enabled:
+            from tqdm import tqdm
+
+            counts = manifest.counts()
+            self.bar = tqdm(total=len(manifest.runs), initial=counts[DONE], unit="run", desc="sweep",
+                            file=sys.stderr, smoothing=0.1)
+            self.update()
+
+    def update(self, step: int = 0) -> None:
+        if self.bar is None:
+            return
+        c = self.manifest.counts()
+        self.bar.set_postfix_str(f"done={c[DONE]}, failed={c[FAILED]}, remaining={c[PENDING] + c[FAILED]}",
+                                 refresh=False)
+        self.bar.update(step)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def start_client(workers: int | None, scheduler: str | None):
+    """(client, cluster): a client of ``scheduler`` or of a fresh LocalCluster (cluster None then)."""
+    from distributed import Client, LocalCluster
+
+    if scheduler:
+        return Client(scheduler, timeout="30s"), None
+    cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
+                           dashboard_address=None, silence_logs=40)
+    return Client(cluster), cluster
+
+
+def run_sweep(manifest: Manifest, packing: Path | None = None, workers: int | None = None,
+              scheduler: str | None = None, progress: bool = True, runner=run_packed) -> dict:
+    """Run every pending or failed point of ``manifest``; returns the final counts.
+
+    ``runner(point, packing_bytes, packing_name) -> (summary, packed run directory)`` is the
+    task (tests substitute one that crashes its worker)."""
+    todo = manifest.todo()
+    bar = SweepProgress(manifest, progress)
+    if not todo:
+        bar.close()
+        return manifest.counts()
+    from distributed import as_completed
+
+    packing_bytes = Path(packing).read_bytes() if packing else None
+    packing_name = str(packing) if packing else None
+    client, cluster = start_client(workers, scheduler)
+    try:
+        futures = {}
+        for point in todo:
+            manifest.started(point.run_id)
+            key = f"hmdem-{point.run_id}-{manifest.runs[point.run_id]['attempts']}-{time.time_ns()}"
+            futures[client.submit(runner, point, packing_bytes, packing_name, key=key, pure=False)] = point
+        manifest.save()
+        for future in as_completed(futures):
+            point = futures[future]
+            try:
+                summary, packed = future.result()
+                unpack_directory(packed, manifest.run_dir(point.run_id))
+                manifest.finished(point.run_id, None)
+            except Exception as exc:  # the run raised, or its worker died too often
+                manifest.finished(point.run_id, error_text(exc))
+            bar.update(1 if manifest.runs[point.run_id]["status"] == DONE else 0)
+    finally:
+        bar.close()
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    return manifest.counts()

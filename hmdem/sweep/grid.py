@@ -1,0 +1,67 @@
+"""Sweep grids: ``A:B:N`` axes of log10 M and log10 Ca*, and the points they span."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Axis:
+    """``count`` values evenly spaced from ``start`` to ``stop`` (both included)."""
+
+    start: float
+    stop: float
+    count: int
+
+    def values(self) -> np.ndarray:
+        return np.linspace(self.start, self.stop, self.count)
+
+    def spec(self) -> str:
+        return f"{self.start:g}:{self.stop:g}:{self.count}"
+
+
+def parse_axis(text: str) -> Axis:
+    """``"A:B:N"`` -> Axis(A, B, N); ValueError naming what is allowed otherwise."""
+    parts = text.split(":")
+    if len(parts) != 3:
+        raise ValueError(f"expected START:STOP:COUNT (e.g. -5:2:5), got {text!r}")
+    try:
+        start, stop = float(parts[0]), float(parts[1])
+        count = int(parts[2])
+    except ValueError:
+        raise ValueError(f"expected numbers START:STOP and an integer COUNT, got {text!r}") from None
+    if not (math.isfinite(start) and math.isfinite(stop)):
+        raise ValueError(f"START and STOP must be finite, got {text!r}")
+    if count < 1:
+        raise ValueError(f"COUNT must be >= 1, got {text!r}")
+    if count == 1 and start != stop:
+        raise ValueError(f"COUNT 1 needs START = STOP, got {text!r}")
+    if count > 1 and start == stop:
+        raise ValueError(f"START = STOP needs COUNT 1, got {text!r}")
+    return Axis(start, stop, count)
+
+
+@dataclass(frozen=True)
+class SweepPoint:
+    """One run: log10 of the viscosity ratio M = eta_inv / eta_def, log10 Ca*, aperture seed."""
+
+    log_m: float
+    log_ca_star: float
+    seed: int
+
+    @property
+    def run_id(self) -> str:
+        """Directory name; round-trips the grid values to 1e-4 in log10."""
+        return f"logM{self.log_m:+.4f}_logCa{self.log_ca_star:+.4f}_seed{self.seed}"
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def lenormand_points(log_m: Axis, log_ca_star: Axis, seeds: int) -> list[SweepPoint]:
+    """Every (M, Ca*, seed) of the grid, seeds 0 .. seeds-1, M outermost."""
+    return [SweepPoint(round(float(m), 10), round(float(c), 10), s)
+            for m in log_m.values() for c in log_ca_star.values() for s in range(seeds)]

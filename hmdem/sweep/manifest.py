@@ -1,0 +1,80 @@
+"""The sweep manifest: what the sweep is and where each run stands, in ``manifest.json``.
+
+Every write goes to a temporary file that is then renamed over the old one, so a kill at any
+moment leaves either the previous or the new manifest. The run directories are the truth about
+which runs finished (a run directory only appears, atomically, when its run is complete); the
+manifest adds what they cannot say: failures, their error text and the number of attempts.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from ..rundir import write_text_atomic
+from .grid import SweepPoint
+from .runner import read_summary
+
+PENDING, DONE, FAILED = "pending", "done", "failed"
+
+
+class Manifest:
+    """``manifest.json`` of a sweep directory: the grid (``spec``) and one record per run."""
+
+    def __init__(self, root: Path, spec: dict, points: list[SweepPoint]):
+        self.root = Path(root)
+        self.path = self.root / "manifest.json"
+        self.spec = spec
+        self.points = {p.run_id: p for p in points}
+        self.runs = {p.run_id: {**p.as_dict(), "status": PENDING, "attempts": 0, "error": None} for p in points}
+
+    @classmethod
+    def open(cls, root: Path, spec: dict, points: list[SweepPoint]) -> "Manifest":
+        """A new manifest, or the existing one of ``root`` if it describes the same sweep
+        (ValueError otherwise); either way reconciled with the run directories on disk."""
+        m = cls(root, spec, points)
+        if m.path.is_file():
+            old = json.loads(m.path.read_text())
+            if old.get("spec") != spec:
+                raise ValueError(f"{str(root)!r} holds a different sweep ({old.get('spec')}); "
+                                 f"use a new --out or the same grid")
+            for run_id, record in old.get("runs", {}).items():
+                if run_id in m.runs:
+                    m.runs[run_id].update(status=record["status"], attempts=record["attempts"],
+                                          error=record["error"])
+        m.root.mkdir(parents=True, exist_ok=True)
+        m.reconcile()
+        return m
+
+    def run_dir(self, run_id: str) -> Path:
+        return self.root / "runs" / run_id
+
+    def reconcile(self) -> None:
+        """Done exactly when the run directory holds a finished run."""
+        for run_id, record in self.runs.items():
+            finished = read_summary(self.run_dir(run_id)) is not None
+            if finished:
+                record.update(status=DONE, error=None)
+            elif record["status"] == DONE:
+                record["status"] = PENDING
+        self.save()
+
+    def todo(self) -> list[SweepPoint]:
+        """Pending and failed runs (failed ones are retried)."""
+        return [self.points[r] for r, rec in self.runs.items() if rec["status"] != DONE]
+
+    def started(self, run_id: str) -> None:
+        self.runs[run_id]["attempts"] += 1
+
+    def finished(self, run_id: str, error: str | None) -> None:
+        self.runs[run_id].update(status=FAILED if error else DONE, error=error)
+        self.save()
+
+    def counts(self) -> dict:
+        out = {PENDING: 0, DONE: 0, FAILED: 0}
+        for rec in self.runs.values():
+            out[rec["status"]] += 1
+        return out
+
+    def save(self) -> None:
+        write_text_atomic(self.path, json.dumps({"spec": self.spec, "runs": self.runs}, indent=1) + "\n")

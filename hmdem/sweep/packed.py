@@ -1,0 +1,59 @@
+"""Run directories as bytes: a worker runs a point into its own scratch space and sends the
+whole run directory back, so a Dask cluster needs no file system shared with the client and
+only the client ever writes into the sweep directory."""
+
+from __future__ import annotations
+
+import io
+import os
+import shutil
+import tarfile
+import tempfile
+from pathlib import Path
+
+from .grid import SweepPoint
+from .runner import cli_arguments, run_point
+
+
+def pack_directory(path: Path) -> bytes:
+    """The files of a directory as an uncompressed tar (PNG and npz are compressed already)."""
+    buffer = io.BytesIO()
+    with tarfile.open(fileobj=buffer, mode="w") as tar:
+        for item in sorted(Path(path).iterdir()):
+            tar.add(item, arcname=item.name)
+    return buffer.getvalue()
+
+
+def unpack_directory(data: bytes, final: Path) -> None:
+    """Extract ``data`` to a temporary sibling of ``final``, then rename it to ``final``."""
+    final = Path(final)
+    final.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.partial-", dir=final.parent))
+    try:
+        with tarfile.open(fileobj=io.BytesIO(data)) as tar:
+            members = tar.getmembers()
+            for member in members:  # a run directory is flat: plain files with plain names
+                if not member.isfile() or Path(member.name).name != member.name or member.name.startswith("."):
+                    raise ValueError(f"unexpected entry {member.name!r} in a packed run directory")
+            tar.extractall(tmp, members=members)
+        if final.exists():  # a stale directory of an interrupted run
+            shutil.rmtree(final)
+        os.replace(tmp, final)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+def run_packed(point: SweepPoint, packing: bytes | None = None, packing_name: str | None = None) -> tuple[dict, bytes]:
+    """Run ``point`` in a scratch directory (``packing``: the bytes of a packing .npz, None for
+    the shipped one, ``packing_name`` its path on the client); its summary and the packed run
+    directory, whose config.toml records the command as run from the sweep directory."""
+    with tempfile.TemporaryDirectory(prefix="hmdem-sweep-") as scratch:
+        packing_path = None
+        if packing is not None:
+            packing_path = Path(scratch) / "packing.npz"
+            packing_path.write_bytes(packing)
+        out = Path(scratch) / point.run_id
+        recorded = cli_arguments(point, Path("runs") / point.run_id, packing_name)
+        summary = run_point(point, out, packing_path, recorded)
+        return summary, pack_directory(out)

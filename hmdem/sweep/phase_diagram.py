@@ -1,0 +1,107 @@
+"""``phase_diagram.png``: the regime of every (M, Ca*) point of a sweep as a coloured field,
+D_f written on each, with Lenormand's experiments as seed 004 reproduces them and the
+crossover lines of :mod:`.boundaries`."""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+REGIME_COLOURS = {
+    "capillary fingering": "#f4a259",
+    "viscous fingering": "#5b8fd9",
+    "stable displacement": "#6abf69",
+}
+OTHER_COLOUR = "#cccccc"
+# Lenormand, Touboul & Zarcone (1988) experiments as matched by seed 004 (§4.1, Table 1):
+# (M, Ca*, regime observed)
+LENORMAND_EXPERIMENTS = [(1.8e-5, 1.9e-4, "viscous fingering"), (1.8e-5, 3.1e-7, "capillary fingering"),
+                         (101.8, 38.6, "stable displacement"), (101.8, 2.4e-3, "capillary fingering")]
+LENORMAND_L_OVER_A = 150e-3 / 0.35e-3  # their micromodel: Ca = Ca* / 428.6 (digest §10.3)
+
+
+def cell_edges(values: np.ndarray) -> np.ndarray:
+    """Edges midway between sorted grid values (half a spacing beyond the ends; width 1 alone)."""
+    if len(values) == 1:
+        return np.array([values[0] - 0.5, values[0] + 0.5])
+    mid = 0.5 * (values[1:] + values[:-1])
+    return np.concatenate([[2 * values[0] - mid[0]], mid, [2 * values[-1] - mid[-1]]])
+
+
+def point_summary(rows: list[dict]) -> dict:
+    """(log_m, log_ca_star) -> (majority regime or 'failed', mean D_f, runs, failed runs)."""
+    groups: dict = {}
+    for r in rows:
+        key = (round(float(r["log_m"]), 6), round(float(r["log_ca_star"]), 6))
+        groups.setdefault(key, []).append(r)
+    out = {}
+    for key, group in groups.items():
+        ok = [r for r in group if r.get("status") != "failed"]
+        regimes = Counter(r.get("regime") for r in ok)
+        regime = regimes.most_common(1)[0][0] if ok else "failed"
+        d_f = [float(r["fractal_dimension"]) for r in ok if r.get("fractal_dimension") not in (None, "")
+               and math.isfinite(float(r["fractal_dimension"]))]
+        out[key] = (regime, float(np.mean(d_f)) if d_f else math.nan, len(group), len(group) - len(ok))
+    return out
+
+
+def plot_phase_diagram(path: Path, rows: list[dict], crossover: float | None = None) -> None:
+    """Write the diagram; ``crossover``: Ca*_c at M >= 1 (:func:`.boundaries.capillary_crossover`)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch, Rectangle
+
+    points = point_summary(rows)
+    fig, ax = plt.subplots(figsize=(8.5, 6.5))
+    if points:
+        ms = np.array(sorted({k[0] for k in points}))
+        cs = np.array(sorted({k[1] for k in points}))
+        m_edges, c_edges = cell_edges(ms), cell_edges(cs)
+        for (m, c), (regime, d_f, n, failed) in points.items():
+            i, j = np.searchsorted(ms, m), np.searchsorted(cs, c)
+            ax.add_patch(Rectangle((m_edges[i], c_edges[j]), m_edges[i + 1] - m_edges[i], c_edges[j + 1] - c_edges[j],
+                                   facecolor=REGIME_COLOURS.get(regime, OTHER_COLOUR), edgecolor="white",
+                                   hatch="//" if regime == "failed" else None))
+            label = "failed" if regime == "failed" else f"D$_f$ {d_f:.2f}" if math.isfinite(d_f) else "D$_f$ n/a"
+            if failed and regime != "failed":
+                label += f"\n{failed}/{n} failed"
+            ax.text(m, c, label, ha="center", va="center", fontsize=8)
+        x_lim, y_lim = (m_edges[0], m_edges[-1]), (c_edges[0], c_edges[-1])
+    else:
+        x_lim, y_lim = (-5.0, 2.0), (-8.0, 2.0)
+    for m, c, regime in LENORMAND_EXPERIMENTS:
+        ax.plot(math.log10(m), math.log10(c), marker="*", ms=14, color=REGIME_COLOURS[regime], mec="black")
+    if crossover is not None:
+        x = np.linspace(min(x_lim[0], -6), max(x_lim[1], 3), 200)
+        y = math.log10(crossover) + np.minimum(x, 0.0)
+        ax.plot(x, y, "k--", lw=1.2)
+        ax.plot([0.0, 0.0], [math.log10(crossover), y_lim[1] + 1], "k:", lw=1.2)
+    ax.set_xlim(*x_lim)
+    ax.set_ylim(*y_lim)
+    ax.set_xlabel("log$_{10}$ M  (M = η$_{inv}$ / η$_{def}$)")
+    ax.set_ylabel("log$_{10}$ Ca*  (seed 004 Eq. 24)")
+    ratios = [float(r["ca"]) / float(r["ca_star"]) for r in rows if r.get("ca") not in (None, "")
+              and math.isfinite(float(r["ca"]))]
+    if ratios:
+        shift = math.log10(float(np.median(ratios)))
+        right = ax.secondary_yaxis("right", functions=(lambda y: y + shift, lambda y: y - shift))
+        right.set_ylabel(f"log$_{{10}}$ Ca (plain: Ca = Ca* ā / L = Ca* / {1 / 10 ** shift:.1f})")
+    handles = [Patch(color=c, label=name) for name, c in REGIME_COLOURS.items()]
+    handles.append(Patch(facecolor=OTHER_COLOUR, hatch="//", label="failed / other"))
+    handles.append(plt.Line2D([], [], marker="*", ls="", ms=12, color="grey", mec="black",
+                              label="Lenormand et al. (1988) experiments (seed 004 §4.1)"))
+    if crossover is not None:
+        handles.append(plt.Line2D([], [], color="black", ls="--",
+                                  label=f"viscous = 10 x capillary spread (Darcy; Ca*$_c$ = {crossover:.3g} at M ≥ 1)"))
+        handles.append(plt.Line2D([], [], color="black", ls=":", label="M = 1 (Saffman-Taylor)"))
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=8)
+    ax.set_title(f"Lenormand phase diagram: {len(rows)} runs, regime by majority over seeds\n"
+                 f"Lenormand's micromodel: Ca = Ca* / {LENORMAND_L_OVER_A:.1f}", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)

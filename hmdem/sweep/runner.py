@@ -1,0 +1,61 @@
+"""One sweep point = one ``python -m hmdem.hele_shaw linear`` run, in-process.
+
+The base case is Lenormand's Case 2 (``sd``: glucose solution into oil, both with K = 2000 MPa,
+gamma = 14.5 dyn/cm, theta = 180 deg, drainage): M changes the invading viscosity (the
+defending oil keeps 5.6 cP) and Ca* the rate (Eq. 24), so the two axes of the diagram are the
+only things that change (decisions.md #28). The nominal step follows the rate (``make_case``).
+"""
+
+from __future__ import annotations
+
+import io
+import json
+from contextlib import redirect_stdout
+from pathlib import Path
+
+from .grid import SweepPoint
+
+BASE_CASE = "sd"
+INCOMPLETE = ("interrupted",)  # statuses of a run directory that does not count as done
+
+
+def cli_arguments(point: SweepPoint, out: Path, packing: str | None = None) -> list[str]:
+    """The single-run command line of a point (also stored in its config.toml)."""
+    args = ["linear", "--case", BASE_CASE, "--viscosity-ratio", repr(10.0 ** point.log_m),
+            "--ca-star", repr(10.0 ** point.log_ca_star), "--seed", str(point.seed), "--out", str(out), "--quiet"]
+    if packing:
+        args += ["--packing", str(packing)]
+    return args
+
+
+def read_summary(run_dir: Path) -> dict | None:
+    """summary.json of a finished run directory; None if absent or the run was interrupted."""
+    path = Path(run_dir) / "summary.json"
+    if not path.is_file():
+        return None
+    summary = json.loads(path.read_text())
+    return None if summary.get("status") in INCOMPLETE else summary
+
+
+def run_point(point: SweepPoint, out: Path, packing: str | None = None, recorded_as: list[str] | None = None) -> dict:
+    """Run one point into ``out`` (written atomically by the run itself); its summary.
+
+    ``recorded_as``: the command line config.toml records (default: the one run here). A run
+    directory left by an interrupted run is replaced. Raises on any failure; the sweep records
+    the error text."""
+    from ..hele_shaw import build_parser, run_linear
+
+    out = Path(out)
+    if out.exists():
+        if read_summary(out) is not None:
+            return read_summary(out)
+        import shutil
+
+        shutil.rmtree(out)
+    argv = cli_arguments(point, out, packing)
+    with redirect_stdout(io.StringIO()):  # the run's two result lines; the sweep reports instead
+        code = run_linear(build_parser().parse_args(argv), recorded_as or argv)
+    summary = read_summary(out)
+    if code != 0 or summary is None:
+        raise RuntimeError(f"run {point.run_id} ended with exit status {code}")
+    return summary

@@ -1,0 +1,84 @@
+"""``sweep.csv``: one row per run directory under a sweep (or ``yade-batch``) directory, plus
+one per failed run of the manifest, with its error text."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import tomllib
+from pathlib import Path
+
+from ..rundir import write_text_atomic
+
+COLUMNS = ["run", "log_m", "log_ca_star", "viscosity_ratio", "ca_star", "ca", "seed", "status", "regime",
+           "fractal_dimension", "breakthrough_time_s", "breakthrough_saturation", "peak_injection_pressure_pa",
+           "injection_energy_j", "dissipated_energy_j", "steps", "wall_time_s", "error"]
+# columns that differ between two executions of the same runs
+TIMING_COLUMNS = ("wall_time_s",)
+
+
+def run_directories(root: Path) -> list[Path]:
+    """Directories under ``root`` holding a run (summary.json and config.toml); hidden ones,
+    e.g. partial writes, are skipped."""
+    found = []
+    for dirpath, dirnames, filenames in os.walk(root):
+        dirnames[:] = sorted(d for d in dirnames if not d.startswith("."))
+        if "summary.json" in filenames and "config.toml" in filenames:
+            found.append(Path(dirpath))
+            dirnames[:] = []
+    return found
+
+
+def run_row(root: Path, run_dir: Path) -> dict:
+    """One sweep.csv row from a run directory (Ca = Ca* a_mean / L, seed 004 Eq. 24)."""
+    summary = json.loads((run_dir / "summary.json").read_text())
+    config = tomllib.loads((run_dir / "config.toml").read_text())
+    case = config.get("case", {})
+    ca_star, m = summary["ca_star"], summary["viscosity_ratio"]
+    ca = ca_star * case["mean_aperture_m"] / case["length_m"] if "length_m" in case else math.nan
+    row = {k: summary.get(k) for k in COLUMNS if k in summary}
+    row.update(run=run_dir.relative_to(root).as_posix(), log_m=math.log10(m), log_ca_star=math.log10(ca_star),
+               viscosity_ratio=m, ca_star=ca_star, ca=ca, seed=config.get("run", {}).get("seed"), error="")
+    return row
+
+
+def failed_rows(root: Path) -> list[dict]:
+    """Rows of the manifest's failed runs (no run directory), with the error text."""
+    path = Path(root) / "manifest.json"
+    if not path.is_file():
+        return []
+    rows = []
+    for run_id, rec in json.loads(path.read_text())["runs"].items():
+        if rec["status"] == "failed":
+            rows.append({"run": f"runs/{run_id}", "log_m": rec["log_m"], "log_ca_star": rec["log_ca_star"],
+                         "viscosity_ratio": 10.0 ** rec["log_m"], "ca_star": 10.0 ** rec["log_ca_star"],
+                         "seed": rec["seed"], "status": "failed", "error": rec["error"]})
+    return rows
+
+
+def collect(root: Path) -> list[dict]:
+    """All rows of a sweep directory, ordered by M, Ca*, seed."""
+    root = Path(root)
+    rows = [run_row(root, d) for d in run_directories(root)] + failed_rows(root)
+    return sorted(rows, key=lambda r: (r["log_m"], r["log_ca_star"], r.get("seed") or 0, r["run"]))
+
+
+def format_value(v) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return "" if math.isnan(v) else repr(v)
+    return str(v)
+
+
+def write_csv(path: Path, rows: list[dict]) -> None:
+    """sweep.csv, written through a temporary file and a rename."""
+    buffer = io.StringIO()
+    w = csv.writer(buffer, lineterminator="\n")
+    w.writerow(COLUMNS)
+    for row in rows:
+        w.writerow([format_value(row.get(k)) for k in COLUMNS])
+    write_text_atomic(path, buffer.getvalue())

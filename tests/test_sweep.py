@@ -1,0 +1,240 @@
+"""Parameter sweeps (issue 4): grids, Dask execution, resume, failures, collect, yade-batch.
+
+The runs here use a 144-disc triangular packing (~1 s per run); the 5 x 6 grid on the default
+packing is a `make validate` check (tests/test_sweep_full.py)."""
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hmdem.network.packing import DiscPacking
+from hmdem.sweep.__main__ import main as sweep_main
+from hmdem.sweep.grid import Axis, SweepPoint, lenormand_points, parse_axis
+from hmdem.sweep.manifest import Manifest
+from hmdem.sweep.packed import run_packed
+from hmdem.sweep.table import TIMING_COLUMNS
+
+ROOT = Path(__file__).resolve().parent.parent
+GRID = ["--log-m", "-4:2:2", "--log-ca", "-6:1:2"]  # one point in each corner of the diagram
+
+
+def tiny_packing(nx=12, ny=12, r=1e-3, seed=0) -> DiscPacking:
+    """Discs on a triangular lattice (spacing 2r), radii shrunk by up to 4 %: every lattice
+    neighbour pair is a contact, so the network is the lattice's (planar, connected)."""
+    rng = np.random.default_rng(seed)
+    s = 2 * r
+    xy = np.array([[(i + 0.5 * (j % 2)) * s + r, j * s * np.sqrt(3) / 2 + r] for j in range(ny) for i in range(nx)])
+    radii = r * (1 - 0.04 * rng.random(len(xy)))
+    d = np.linalg.norm(xy[:, None] - xy[None], axis=2)
+    i, j = np.nonzero(np.triu(d < 1.01 * s, 1))
+    box = (nx * s + r, (ny - 1) * s * np.sqrt(3) / 2 + 2 * r)
+    return DiscPacking(xy, radii, np.stack([i, j], 1), box, seed)
+
+
+@pytest.fixture(scope="module")
+def packing(tmp_path_factory):
+    path = tmp_path_factory.mktemp("packing") / "tiny.npz"
+    tiny_packing().save(path)
+    return path
+
+
+def read_table(path: Path, drop=TIMING_COLUMNS) -> list[dict]:
+    with open(path) as f:
+        return [{k: v for k, v in row.items() if k not in drop} for row in csv.DictReader(f)]
+
+
+@pytest.fixture(scope="module")
+def reference(packing, tmp_path_factory):
+    """An uninterrupted 2 x 2 sweep on the embedded Dask LocalCluster (2 workers)."""
+    out = tmp_path_factory.mktemp("sweeps") / "reference"
+    code = sweep_main(["lenormand", *GRID, "--workers", "2", "--packing", str(packing), "--out", str(out), "--quiet"])
+    return code, out
+
+
+# ---- grids and input checks ----------------------------------------------------------------
+def test_axis_spec_gives_evenly_spaced_values_with_both_ends():
+    np.testing.assert_allclose(parse_axis("-5:2:5").values(), [-5, -3.25, -1.5, 0.25, 2])
+    assert parse_axis("3:3:1").values().tolist() == [3.0]
+    points = lenormand_points(parse_axis("-1:1:2"), parse_axis("0:0:1"), seeds=3)
+    assert len(points) == 6 and [p.seed for p in points] == [0, 1, 2, 0, 1, 2]
+    assert len({p.run_id for p in points}) == 6
+
+
+@pytest.mark.parametrize("flags, named", [
+    (["--log-m", "1:2"], "--log-m"),
+    (["--log-m", "-5:2:0"], "--log-m"),
+    (["--log-ca", "a:b:3"], "--log-ca"),
+    (["--log-ca", "1:1:3"], "--log-ca"),
+    (["--log-ca", "0:inf:3"], "--log-ca"),
+    (["--seeds", "0"], "--seeds"),
+    (["--workers", "-1"], "--workers"),
+])
+def test_invalid_grid_specs_are_rejected_in_one_line(flags, named, tmp_path):
+    out = tmp_path / "sweep"
+    proc = subprocess.run([sys.executable, "-m", "hmdem.sweep", "lenormand", *flags, "--out", str(out)],
+                          capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("python -m hmdem.sweep: ") and named in lines[0]
+    assert not out.exists()  # nothing written
+
+
+def test_a_sweep_directory_cannot_be_resumed_with_another_grid(tmp_path):
+    points = lenormand_points(Axis(0, 0, 1), Axis(0, 0, 1), 1)
+    Manifest.open(tmp_path, {"log_m": "0:0:1"}, points)
+    with pytest.raises(ValueError, match="different sweep"):
+        Manifest.open(tmp_path, {"log_m": "0:1:2"}, points)
+
+
+# ---- Dask, resume, failures ----------------------------------------------------------------
+def test_dask_local_sweep_runs_every_point_into_its_run_directory(reference):
+    code, out = reference
+    assert code == 0
+    rows = read_table(out / "sweep.csv")
+    assert len(rows) == 4 and {r["status"] for r in rows} == {"breakthrough"}
+    # each point keeps the single-run contract and records the command that reproduces it
+    for row in rows:
+        run = out / row["run"]
+        for name in ("config.toml", "summary.json", "timeseries.csv", "network.npz", "state.npz",
+                     "pattern.png", "pressure.png", "domains.vtu"):
+            assert (run / name).is_file(), name
+        assert "linear --case sd --viscosity-ratio" in (run / "config.toml").read_text()
+    # regimes come from the runs: the low-Ca* corners are capillary fingering
+    low = [r for r in rows if float(r["log_ca_star"]) < 0]
+    assert {r["regime"] for r in low} == {"capillary fingering"}
+    assert (out / "phase_diagram.png").stat().st_size > 10_000
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert {r["status"] for r in manifest["runs"].values()} == {"done"}
+
+
+def crash_first_attempt(point, packing, packing_name):
+    """Kill the worker process the first time the M = 100, Ca* = 10 point runs."""
+    marker = Path(os.environ["HMDEM_TEST_MARKER"])
+    if point.log_m > 0 and point.log_ca_star > 0 and not marker.exists():
+        marker.write_text("crashed once")
+        os._exit(1)
+    return run_packed(point, packing, packing_name)
+
+
+def fail_at_low_m(point, packing, packing_name):
+    if point.log_m < 0 and point.log_ca_star > 0:
+        raise RuntimeError("simulated failure at log M < 0")
+    return run_packed(point, packing, packing_name)
+
+
+def open_manifest(out, packing):
+    from hmdem.sweep.__main__ import DEFAULT_LOG_CA  # noqa: F401  (the CLI's spec layout)
+
+    spec = {"kind": "lenormand", "log_m": "-4:2:2", "log_ca_star": "-6:1:2", "seeds": 1, "packing": str(packing)}
+    return Manifest.open(out, spec, lenormand_points(parse_axis("-4:2:2"), parse_axis("-6:1:2"), 1))
+
+
+@pytest.fixture
+def by_value():
+    """Ship this module's runner functions to the Dask workers by value (they cannot import it)."""
+    import cloudpickle
+
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    yield
+    cloudpickle.unregister_pickle_by_value(sys.modules[__name__])
+
+
+def test_a_worker_crash_is_retried_and_gives_the_same_table(reference, packing, tmp_path, monkeypatch, by_value):
+    from hmdem.sweep.__main__ import write_tables
+    from hmdem.sweep.execute import run_sweep
+
+    marker = tmp_path / "crashed"
+    monkeypatch.setenv("HMDEM_TEST_MARKER", str(marker))  # LocalCluster workers inherit the environment
+    out = tmp_path / "sweep"
+    manifest = open_manifest(out, packing)
+    counts = run_sweep(manifest, packing, workers=2, progress=False, runner=crash_first_attempt)
+    assert marker.exists()  # the worker did die
+    assert counts["done"] == 4 and counts["failed"] == 0
+    write_tables(out)
+    assert read_table(out / "sweep.csv") == read_table(reference[1] / "sweep.csv")
+
+
+def test_a_failing_run_is_recorded_without_stopping_the_others_and_retried(reference, packing, tmp_path, by_value):
+    from hmdem.sweep.__main__ import write_tables
+    from hmdem.sweep.execute import run_sweep
+
+    out = tmp_path / "sweep"
+    manifest = open_manifest(out, packing)
+    counts = run_sweep(manifest, packing, workers=2, progress=False, runner=fail_at_low_m)
+    assert counts == {"pending": 0, "done": 3, "failed": 1}
+    failed = [r for r in manifest.runs.values() if r["status"] == "failed"]
+    assert failed[0]["error"].startswith("RuntimeError: simulated failure at log M < 0")
+    assert not (out / "runs" / SweepPoint(-4.0, 1.0, 0).run_id).exists()  # nothing half-written
+    write_tables(out)
+    rows = read_table(out / "sweep.csv")
+    assert [r["status"] for r in rows].count("failed") == 1
+    assert "simulated failure" in next(r["error"] for r in rows if r["status"] == "failed")
+    # the same command again retries only the failed run, which now succeeds
+    manifest = open_manifest(out, packing)
+    assert [p.run_id for p in manifest.todo()] == [SweepPoint(-4.0, 1.0, 0).run_id]
+    counts = run_sweep(manifest, packing, workers=1, progress=False)
+    assert counts["done"] == 4 and manifest.runs[SweepPoint(-4.0, 1.0, 0).run_id]["attempts"] == 2
+    write_tables(out)
+    assert read_table(out / "sweep.csv") == read_table(reference[1] / "sweep.csv")
+
+
+def test_an_interrupted_sweep_finishes_with_the_same_table(reference, packing, tmp_path):
+    out = tmp_path / "sweep"
+    cmd = [sys.executable, "-m", "hmdem.sweep", "lenormand", *GRID, "--workers", "1", "--packing", str(packing),
+           "--out", str(out), "--quiet"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 300
+    while time.time() < deadline:  # stop it once the first run is in and before the last
+        runs = out / "runs"
+        if runs.is_dir() and len([p for p in runs.iterdir() if not p.name.startswith(".")]) >= 1:
+            break
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 130, stderr[-2000:]
+    partial = read_table(out / "sweep.csv")
+    assert 1 <= len(partial) < 4
+    assert json.loads((out / "manifest.json").read_text())["spec"]["log_m"] == "-4:2:2"  # valid manifest
+    # the same command again finishes the sweep; the table equals the uninterrupted one
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert read_table(out / "sweep.csv") == read_table(reference[1] / "sweep.csv")
+
+
+# ---- yade-batch ----------------------------------------------------------------------------
+@pytest.mark.yade
+def test_yade_batch_runs_the_shipped_table_and_collect_aggregates_it(packing, tmp_path):
+    # the first and last rows of the shipped 5 x 6 table (capillary fingering at low M and Ca*,
+    # stable displacement at high M and Ca* on the default packing), on the tiny packing
+    lines = (ROOT / "yade_scripts" / "lenormand.table").read_text().splitlines()
+    rows = [ln for ln in lines if ln.strip() and not ln.startswith("#")]
+    header, body = rows[0], rows[1:]
+    assert len(body) == 30
+    table = tmp_path / "reduced.table"
+    table.write_text(f"{header} packing\n" + "".join(f"{r} '{packing}'\n" for r in (body[0], body[-1])))
+    proc = subprocess.run(["yade-batch", "--job-threads", "1", "-j", "2", "--log", str(tmp_path / "@.log"),
+                           str(table), str(ROOT / "yade_scripts" / "hele_shaw_linear.py")],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stdout[-2000:]
+    batch = tmp_path / "runs" / "lenormand-batch"
+    proc = subprocess.run([sys.executable, "-m", "hmdem.sweep", "collect", str(batch)], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    collected = read_table(batch / "sweep.csv")
+    assert [(float(r["log_m"]), float(r["log_ca_star"])) for r in collected] == [(-5.0, -8.0), (2.0, 2.0)]
+    assert collected[0]["regime"] == "capillary fingering"
+    assert (batch / "phase_diagram.png").is_file()
+
+
+def test_collect_rejects_a_directory_without_runs(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "hmdem.sweep", "collect", str(tmp_path)], capture_output=True,
+                          text=True)
+    assert proc.returncode == 2 and "no run directories" in proc.stderr
+    assert list(tmp_path.iterdir()) == []  # nothing written

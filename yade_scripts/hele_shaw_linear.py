@@ -1,0 +1,33 @@
+"""One point of the Lenormand sweep (issue 4) from YADE's own launchers.
+
+    yade -n -x yade_scripts/hele_shaw_linear.py                  # one point: log M 2, log Ca* 1
+    yade-batch yade_scripts/lenormand.table yade_scripts/hele_shaw_linear.py
+    python -m hmdem.sweep collect runs/lenormand-batch           # sweep.csv, phase_diagram.png
+
+Parameters (``readParamsFromTable``; defaults in brackets): logM [2] = log10(eta_inv / eta_def),
+logCa [1] = log10 Ca*, seed [0] (aperture field), packing [shipped 65 mm packing], out
+[runs/lenormand-batch/<run id>]. The run is exactly the one ``python -m hmdem.sweep lenormand``
+makes for that point (``python -m hmdem.hele_shaw linear --case sd --viscosity-ratio ...``), in
+the same run-directory layout. The yade launcher runs Debian's Python, so the repository root
+goes on sys.path first and the project venv's pure-Python packages last.
+"""
+import sys
+from pathlib import Path
+
+# under `yade -x`, __file__ is the launcher; sys.argv[0] is this script
+ROOT = Path(sys.argv[0]).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+sys.path.extend(str(p) for p in sorted((ROOT / ".venv" / "lib").glob("python3*/site-packages")))
+
+from yade import utils  # noqa: E402
+
+utils.readParamsFromTable(logM=2.0, logCa=1.0, seed=0, packing="", out="", noTableOk=True)
+from yade.params import table  # noqa: E402
+
+from hmdem.sweep.grid import SweepPoint  # noqa: E402
+from hmdem.sweep.runner import run_point  # noqa: E402
+
+point = SweepPoint(float(table.logM), float(table.logCa), int(table.seed))
+out = Path(table.out or f"runs/lenormand-batch/{point.run_id}")
+summary = run_point(point, out, table.packing or None)
+print(f"{point.run_id}: {summary['status']}, {summary['regime']}, D_f = {summary['fractal_dimension']}; run directory {out}")
