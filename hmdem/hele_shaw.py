@@ -64,6 +64,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="DEM cycles per flow step (the paper: 2000); default: the stable DEM step")
     rad.add_argument("--pv-tol", type=positive_number, help="P-V iteration relative tolerance (default 1e-3)")
     rad.add_argument("--pv-max-iter", type=positive_number, help="P-V iteration cap per attempt (default 12)")
+    rad.add_argument("--pv-grow-after", type=positive_number,
+                     help="easy steps in a row before a halved flow-step cap doubles back (default 1)")
     pv = rad.add_mutually_exclusive_group()
     pv.add_argument("--pv-rewind", action="store_true",
                     help="rewind the DEM to t^n before each P-V iteration, quasi-Newton update (default)")
@@ -185,6 +187,8 @@ def run_radial(args) -> int:
         sc.coupling.pv_rtol = args.pv_tol
     if args.pv_max_iter is not None:
         sc.coupling.pv_max_iter = int(args.pv_max_iter)
+    if args.pv_grow_after is not None:
+        sc.coupling.pv_easy_steps_to_grow = int(args.pv_grow_after)
     sc.coupling.pv_rewind = not args.pv_continue
     if args.t_max is not None:
         sc.setup.t_max = args.t_max

@@ -76,6 +76,10 @@ class CouplingSetup:
     pv_atol: float = 1.0  # Pa, absolute floor of the same test
     pv_max_iter: int = 12
     max_dt_halvings: int = 6  # rewound iteration: retries of an unconverged step at dt / 2^k
+    # the halved cap doubles back after this many consecutive easy steps (<= pv_max_iter // 3
+    # iterations): doubling after every easy step made hard stretches alternate between a
+    # converged step and a failed one at twice its size
+    pv_easy_steps_to_grow: int = 1
     dem_cycles_per_step: int | None = None  # fixed count (the paper: 2000); None: stable DEM step
     stable_dem_step: float = 0.0  # DEM stability step [s], used when dem_cycles_per_step is None
     one_way: bool = False
@@ -109,6 +113,7 @@ class CoupledFlowModel(FlowModel):
         self.coupling_record = CouplingRecord()
         self.quasi_newton = InterfaceQuasiNewton()
         self.coupling_dt = setup.dt  # flow-step cap of the coupling (halved when P-V fails)
+        self._easy_steps = 0  # consecutive easy steps since the cap was last changed
         self._tried_dt = setup.dt  # the last step the P-V iteration was tried at
         self.contact_pairs = net.pipe_grains
         self.positions = grains.positions()  # grain centres now (read from the DEM after each run)
@@ -209,8 +214,14 @@ class CoupledFlowModel(FlowModel):
             self._rewind()
             self.coupling_dt = 0.5 * self._tried_dt
             self.coupling_record.dt_halvings += 1
+            self._easy_steps = 0
         if converged and iterations <= c.pv_max_iter // 3:
-            self.coupling_dt = min(2.0 * self.coupling_dt, self.setup.dt)
+            self._easy_steps += 1
+            if self._easy_steps >= c.pv_easy_steps_to_grow:
+                self.coupling_dt = min(2.0 * self.coupling_dt, self.setup.dt)
+                self._easy_steps = 0
+        else:
+            self._easy_steps = 0
         return sol, fill, dt, limiter, iterations, converged
 
     def step_cap(self) -> float:

@@ -50,11 +50,9 @@ def point_summary(rows: list[dict]) -> dict:
 
 def plot_phase_diagram(path: Path, rows: list[dict], crossover: float | None = None) -> None:
     """Write the diagram; ``crossover``: Ca*_c at M >= 1 (:func:`.boundaries.capillary_crossover`)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from matplotlib.patches import Patch, Rectangle
+
+    from ..plots import plt  # Agg backend, Debian's Axes3D warning silenced
 
     points = point_summary(rows)
     fig, ax = plt.subplots(figsize=(8.5, 6.5))
