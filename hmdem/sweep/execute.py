@@ -68,7 +68,7 @@ def start_client(workers: int | None, scheduler: str | None):
     if scheduler:
         return Client(scheduler, timeout="30s"), None
     cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
-                           dashboard_address=None, silence_logs=40)
+                           dashboard_address=None, silence_logs=50)  # errors: in the manifest
     return Client(cluster), cluster
 
 

@@ -40,7 +40,9 @@ def run_row(root: Path, run_dir: Path) -> dict:
     ca_star, m = summary["ca_star"], summary["viscosity_ratio"]
     ca = ca_star * case["mean_aperture_m"] / case["length_m"] if "length_m" in case else math.nan
     row = {k: summary.get(k) for k in COLUMNS if k in summary}
-    row.update(run=run_dir.relative_to(root).as_posix(), log_m=math.log10(m), log_ca_star=math.log10(ca_star),
+    # log10 rounded to 1e-9: 10 ** 0.25 read back gives 0.24999999999999997, not the grid's 0.25
+    row.update(run=run_dir.relative_to(root).as_posix(), log_m=round(math.log10(m), 9),
+               log_ca_star=round(math.log10(ca_star), 9),
                viscosity_ratio=m, ca_star=ca_star, ca=ca, seed=config.get("run", {}).get("seed"), error="")
     return row
 
