@@ -1,9 +1,9 @@
 """Sweep throughput on this machine (issue 4 benchmark): runs per hour with 1 and 2 Dask
 workers, the scaling efficiency, and Dask's overhead over plain sequential execution.
 
-    .venv/bin/python benchmarks/sweep_throughput.py [--log-m=-5:2:2] [--log-ca=-6:2:4] [--out DIR]
+    .venv/bin/python benchmarks/sweep_throughput.py [--log-m=-5:2:2] [--log-ca=-6:0:4] [--out DIR]
 
-The same points (default 2 x 4 on the shipped packing, runs of 10-40 s) are run three times
+The same points (default 2 x 4 on the shipped packing, runs of 7-50 s) are run three times
 into fresh sweep directories: sequentially in this process without Dask (``run_point`` in a
 loop), through ``python -m hmdem.sweep lenormand --workers 1`` and ``--workers 2``. Dask's
 overhead is (T_dask,1 - T_seq) / T_seq; efficiency is T_dask,1 / (2 T_dask,2). Prints the
@@ -32,7 +32,7 @@ def timed(fn) -> float:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--log-m", default="-5:2:2")
-    ap.add_argument("--log-ca", default="-6:2:4")
+    ap.add_argument("--log-ca", default="-6:0:4")
     ap.add_argument("--out", type=Path, default=Path("runs/bench-sweep"))
     args = ap.parse_args()
     points = lenormand_points(parse_axis(args.log_m), parse_axis(args.log_ca), 1)
