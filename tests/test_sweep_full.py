@@ -26,10 +26,11 @@ def column(grid, log_m):
     return np.array([k[1] for k in keys]), np.array(d_f)
 
 
-@pytest.mark.xfail(strict=True, reason="known solver limit, issue 4 open: at log Ca* = -8 the points log M = -1.5, "
-                   "0.25 and 2 stop with LinearSolveError (residual 1.5-2e-5) in the Eq. 19 held solve: the nominal "
-                   "step (~4e7 s at M = 100) makes the invaded island's storage V/(K dt) ~1e-15 of its "
-                   "conductances, singular in double precision even with the pivoted fallback")
+@pytest.mark.xfail(strict=True, reason="known solver limit, issue 4 open: at log Ca* = -8, log M = 2 the run stops "
+                   "at step ~644 (32 % of the front) with a singular factorisation in the Eq. 18 refinement: the "
+                   "nominal step (~8e7 s) leaves the invaded island's storage V/(K dt) below the double-precision "
+                   "resolution of its conductances (the Eq. 19 held solve and the step's own solve now fall back to "
+                   "shorter horizons; the Eq. 18 bisection does not yet)")
 def test_every_point_runs_to_breakthrough(grid):
     assert len(grid) == 30
     assert {r["status"] for r in grid.values()} == {"breakthrough"}

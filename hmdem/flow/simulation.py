@@ -18,8 +18,10 @@ from ..network.network import Network
 from . import front as fr
 from .fluids import FluidPair, conductance
 from .pressure import PressureSolution, PressureSystem
+from .sparse import LinearSolveError
 
 MAX_EQ18_PASSES = 30
+HELD_HORIZON_CUTS = 3  # Eq. 19 held solve retried at 1e-3, 1e-6, 1e-9 of the nominal step
 
 
 class SimulationDiverged(RuntimeError):
@@ -197,20 +199,55 @@ class FlowModel:
                 # which the first of them opens, so that pipe openings, like domain fillings
                 # (Eq. 18), happen one event per step and the pattern does not depend on the
                 # nominal dt. When the whole front is shut this is the paper's Eq. 19 case.
-                held, held_fill = self._trial(state, dt, g, orient, pc, shut, hold=True)
-                dt19 = fr.blocked_front_step(dt, m0[shut], held.margin[shut], self.setup.chi)
+                try:
+                    held, held_fill = self._trial(state, dt, g, orient, pc, shut, hold=True)
+                    margin_end = held.margin[shut]
+                except LinearSolveError:
+                    held, margin_end = None, self._held_margins_extrapolated(state, dt, g, orient, pc, shut)
+                dt19 = fr.blocked_front_step(dt, m0[shut], margin_end, self.setup.chi)
                 if dt19 < dt:
                     dt, limiter = dt19, "eq19"
-                elif np.all(held.margin[shut] <= 0.0) and np.all(held.margin[front & ~shut] > 0.0):
+                elif held is not None and np.all(held.margin[shut] <= 0.0) and np.all(held.margin[front & ~shut] > 0.0):
                     # shut pipes stay shut and open ones open: the held solution already
                     # satisfies Eq. 6 everywhere, so it is the active-set solution at this dt
                     solved = held, held_fill
-        sol, fill = solved or self._trial(state, dt, g, orient, pc, blocked_guess)
+        if solved is None:
+            solved, dt, limiter = self._solve_shortening(state, dt, limiter, g, orient, pc, blocked_guess)
+        sol, fill = solved
         if self.setup.two_phase:
             sol, fill, dt, refined = self._refine_overfill(state, dt, sol, fill, g, orient, pc)
             if refined:
                 limiter = "eq18"
         return sol, fill, dt, limiter
+
+    def _solve_shortening(self, state, dt, limiter, g, orient, pc, blocked_guess):
+        """The step's solve at dt; if the system is singular in double precision (storage
+        V/(K dt) below the resolution of the conductances, nominal steps of ~1e7 s at
+        Ca* ~ 1e-8), at dt / 1000 instead, up to :data:`HELD_HORIZON_CUTS` times."""
+        for cut in range(HELD_HORIZON_CUTS + 1):
+            try:
+                return self._trial(state, dt, g, orient, pc, blocked_guess), dt, limiter
+            except LinearSolveError:
+                if cut == HELD_HORIZON_CUTS:
+                    raise
+                dt, limiter = dt * 1e-3, "conditioning"
+
+    def _held_margins_extrapolated(self, state, dt, g, orient, pc, shut):
+        """Margins of the shut pipes at dt from a held solve over a shorter horizon, linearly
+        extrapolated. For a very long nominal step (Ca* ~ 1e-8) an invaded island with every
+        front pipe shut is tied to the rest only by its storage V/(K dt), which falls below the
+        double-precision resolution of its conductances; over a horizon 1000x shorter it does
+        not, and with constant inflow into storage the margins grow linearly in time."""
+        horizon = dt
+        for _ in range(HELD_HORIZON_CUTS):
+            horizon *= 1e-3
+            try:
+                held, _ = self._trial(state, horizon, g, orient, pc, shut, hold=True)
+            except LinearSolveError:
+                continue
+            m0 = self._margins(state.pressure, orient, pc)[shut]
+            return m0 + (held.margin[shut] - m0) * (dt / horizon)
+        raise LinearSolveError(f"held pressure solve failed down to {horizon:.3g} s (nominal step {dt:.3g} s)")
 
     def _refine_overfill(self, state, dt, sol, fill, g, orient, pc):
         """Shorten dt until exactly one domain fills (seed 004 Eq. 18, iterated; digest U10)."""

@@ -111,13 +111,19 @@ class SpdSolver:
             return residual(y * scale) * scale
 
         size = bnorm if b_size is None else max(bnorm, np.linalg.norm(b_size * scale))
-        correction = self._direct(As) if n <= DIRECT_MAX_UNKNOWNS else self._amg(As, rtol)
-        y, res = refine(correction, bs, scaled_residual, size)
+        try:
+            correction = self._direct(As) if n <= DIRECT_MAX_UNKNOWNS else self._amg(As, rtol)
+            y, res = refine(correction, bs, scaled_residual, size)
+        except RuntimeError:  # SuperLU without pivoting met a zero pivot
+            y, res = None, np.inf
         if (not np.isfinite(res) or res > FAILED) and n <= DIRECT_MAX_UNKNOWNS:
             # near-singular without pivoting, e.g. an Eq. 19 held system whose invaded island of
             # a nearly inviscid, stiff fluid is tied to the rest only by its storage V/(K dt)
             # (~1e-15 of its conductances at Ca* = 1e-8, M = 1e-3): partial pivoting
-            y, res = refine(self._pivoted(As), bs, scaled_residual, size)
+            try:
+                y, res = refine(self._pivoted(As), bs, scaled_residual, size)
+            except RuntimeError as exc:  # SuperLU: "Factor is exactly singular"
+                raise LinearSolveError(f"pressure solve: {exc} (n = {n})") from None
         if not np.isfinite(res) or res > FAILED:
             raise LinearSolveError(f"pressure solve residual {res:.2e} (n = {n})")
         return (y * scale).astype(float)
