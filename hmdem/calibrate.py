@@ -23,7 +23,7 @@ import time
 from pathlib import Path
 
 from . import __version__
-from .cli import InputError, OneLineParser, new_run_directory, non_negative_int, positive_number
+from .cli import InputError, OneLineParser, int_at_least, new_run_directory, non_negative_int, positive_number
 from .rundir import atomic_run_directory, json_safe
 
 PROG = "python -m hmdem.calibrate"
@@ -34,14 +34,7 @@ class _Parser(OneLineParser):
     command = PROG
 
 
-def grain_count(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer >= {MIN_GRAINS}, got {text!r}") from None
-    if v < MIN_GRAINS:
-        raise argparse.ArgumentTypeError(f"must be an integer >= {MIN_GRAINS}, got {text!r}")
-    return v
+grain_count = int_at_least(MIN_GRAINS)
 
 
 def strain_value(text: str) -> float:

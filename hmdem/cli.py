@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import argparse
 import math
+import signal
+import sys
 import time
 from pathlib import Path
 
@@ -35,14 +37,42 @@ def positive_number(text: str) -> float:
     return value
 
 
-def non_negative_int(text: str) -> int:
+def int_at_least(minimum: int, allowed: str | None = None):
+    """argparse type: an integer >= ``minimum``; ``allowed`` words the one-line error."""
+    allowed = allowed or f"an integer >= {minimum}"
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be {allowed}, got {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"must be {allowed}, got {text!r}")
+        return value
+
+    return parse
+
+
+non_negative_int = int_at_least(0, "a non-negative integer")
+positive_int = int_at_least(1)
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -> int:
+    """Run ``commands[args.command](args)``: a batch system's SIGTERM (or kill) ends it like
+    Ctrl-C, an :class:`InputError` is one line on stderr and exit status 2."""
+    signal.signal(signal.SIGTERM, _interrupt)
     try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text!r}")
-    return value
+        if args.command in commands:
+            return commands[args.command](args)
+    except InputError as exc:
+        print(f"{prog}: {exc}", file=sys.stderr)
+        return 2
+    parser.print_help()
+    return 2
 
 
 def new_run_directory(out: Path | None, name: str) -> Path:

@@ -8,7 +8,6 @@
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import time
 from dataclasses import replace
@@ -16,7 +15,7 @@ from pathlib import Path
 
 from . import __version__
 from .cases import CASES
-from .cli import InputError, OneLineParser, new_run_directory, non_negative_int, positive_number
+from .cli import InputError, OneLineParser, dispatch, new_run_directory, non_negative_int, positive_number
 
 PROG = "python -m hmdem.hele_shaw"
 CASE_NAMES = tuple(CASES)
@@ -211,29 +210,14 @@ def run_radial(args) -> int:
     return 130 if rec.status == "interrupted" else 0
 
 
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt
-
-
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0].startswith("--") and argv[0] not in ("--help", "-h", "--version"):
         argv = ["linear", *argv]
     parser = build_parser()
     args = parser.parse_args(argv)
-    # a batch scheduler's SIGTERM (or kill) ends a run like Ctrl-C: status "interrupted", the
-    # partial run directory written
-    signal.signal(signal.SIGTERM, _interrupt)
-    try:
-        if args.command == "linear":
-            return run_linear(args)
-        if args.command == "radial":
-            return run_radial(args)
-    except InputError as exc:
-        print(f"{PROG}: {exc}", file=sys.stderr)
-        return 2
-    parser.print_help()
-    return 2
+    # SIGTERM ends a run like Ctrl-C: status "interrupted", the partial run directory written
+    return dispatch(PROG, parser, args, {"linear": run_linear, "radial": run_radial})
 
 
 if __name__ == "__main__":

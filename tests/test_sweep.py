@@ -17,7 +17,7 @@ import pytest
 
 from hmdem.network.packing import DiscPacking
 from hmdem.sweep.__main__ import main as sweep_main
-from hmdem.sweep.grid import Axis, SweepPoint, lenormand_points, parse_axis
+from hmdem.sweep.grid import Axis, SweepPoint, lenormand_points, lenormand_spec, parse_axis
 from hmdem.sweep.manifest import Manifest
 from hmdem.sweep.packed import run_packed
 from hmdem.sweep.table import TIMING_COLUMNS
@@ -144,10 +144,9 @@ def fail_at_low_m(point, packing, packing_name):
 
 
 def open_manifest(out, packing):
-    from hmdem.sweep.__main__ import DEFAULT_LOG_CA  # noqa: F401  (the CLI's spec layout)
-
-    spec = {"kind": "lenormand", "log_m": "-4:2:2", "log_ca_star": "-6:1:2", "seeds": 1, "packing": str(packing)}
-    return Manifest.open(out, spec, lenormand_points(parse_axis("-4:2:2"), parse_axis("-6:1:2"), 1))
+    """The manifest the CLI opens for GRID on ``packing`` (so a later CLI run resumes it)."""
+    log_m, log_ca = parse_axis("-4:2:2"), parse_axis("-6:1:2")
+    return Manifest.open(out, lenormand_spec(log_m, log_ca, 1, packing), lenormand_points(log_m, log_ca, 1))
 
 
 @pytest.fixture

@@ -21,7 +21,7 @@ from .pressure import PressureSolution, PressureSystem
 from .sparse import LinearSolveError
 
 MAX_EQ18_PASSES = 30
-HELD_HORIZON_CUTS = 3  # Eq. 19 held solve retried at 1e-3, 1e-6, 1e-9 of the nominal step
+SINGULAR_STEP_CUTS = 3  # a solve singular at dt is retried at 1e-3, 1e-6, 1e-9 of dt
 
 
 class SimulationDiverged(RuntimeError):
@@ -203,7 +203,7 @@ class FlowModel:
                     held, held_fill = self._trial(state, dt, g, orient, pc, shut, hold=True)
                     margin_end = held.margin[shut]
                 except LinearSolveError:
-                    held, margin_end = None, self._held_margins_extrapolated(state, dt, g, orient, pc, shut)
+                    held, margin_end = None, self._held_margins_extrapolated(state, dt, g, orient, pc, shut, m0[shut])
                 dt19 = fr.blocked_front_step(dt, m0[shut], margin_end, self.setup.chi)
                 if dt19 < dt:
                     dt, limiter = dt19, "eq19"
@@ -223,30 +223,30 @@ class FlowModel:
     def _solve_shortening(self, state, dt, limiter, g, orient, pc, blocked_guess):
         """The step's solve at dt; if the system is singular in double precision (storage
         V/(K dt) below the resolution of the conductances, nominal steps of ~1e7 s at
-        Ca* ~ 1e-8), at dt / 1000 instead, up to :data:`HELD_HORIZON_CUTS` times."""
-        for cut in range(HELD_HORIZON_CUTS + 1):
+        Ca* ~ 1e-8), at dt / 1000 instead, up to :data:`SINGULAR_STEP_CUTS` times."""
+        for cut in range(SINGULAR_STEP_CUTS + 1):
             try:
                 return self._trial(state, dt, g, orient, pc, blocked_guess), dt, limiter
             except LinearSolveError:
-                if cut == HELD_HORIZON_CUTS:
+                if cut == SINGULAR_STEP_CUTS:
                     raise
                 dt, limiter = dt * 1e-3, "conditioning"
 
-    def _held_margins_extrapolated(self, state, dt, g, orient, pc, shut):
+    def _held_margins_extrapolated(self, state, dt, g, orient, pc, shut, start):
         """Margins of the shut pipes at dt from a held solve over a shorter horizon, linearly
         extrapolated. For a very long nominal step (Ca* ~ 1e-8) an invaded island with every
         front pipe shut is tied to the rest only by its storage V/(K dt), which falls below the
         double-precision resolution of its conductances; over a horizon 1000x shorter it does
-        not, and with constant inflow into storage the margins grow linearly in time."""
+        not, and with constant inflow into storage the margins grow linearly in time from
+        ``start`` (their values at p^n)."""
         horizon = dt
-        for _ in range(HELD_HORIZON_CUTS):
+        for _ in range(SINGULAR_STEP_CUTS):
             horizon *= 1e-3
             try:
                 held, _ = self._trial(state, horizon, g, orient, pc, shut, hold=True)
             except LinearSolveError:
                 continue
-            m0 = self._margins(state.pressure, orient, pc)[shut]
-            return m0 + (held.margin[shut] - m0) * (dt / horizon)
+            return start + (held.margin[shut] - start) * (dt / horizon)
         raise LinearSolveError(f"held pressure solve failed down to {horizon:.3g} s (nominal step {dt:.3g} s)")
 
     def _refine_overfill(self, state, dt, sol, fill, g, orient, pc):

@@ -13,13 +13,12 @@ run directories, e.g. a ``yade-batch`` job of ``yade_scripts/hele_shaw_linear.py
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import time
 from pathlib import Path
 
 from .. import __version__
-from ..cli import InputError, OneLineParser
+from ..cli import InputError, OneLineParser, dispatch, positive_int
 
 PROG = "python -m hmdem.sweep"
 DEFAULT_LOG_M = "-5:2:5"
@@ -37,16 +36,6 @@ def axis(text: str):
         return parse_axis(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
-
-
-def positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}")
-    return value
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -88,7 +77,7 @@ def write_tables(root: Path, rows: list[dict] | None = None) -> list[dict]:
 
 def run_lenormand(args) -> int:
     from .execute import run_sweep
-    from .grid import lenormand_points
+    from .grid import lenormand_points, lenormand_spec
     from .manifest import DONE, FAILED, Manifest
 
     if args.packing is not None and not args.packing.is_file():
@@ -96,8 +85,7 @@ def run_lenormand(args) -> int:
     out = args.out or Path("runs") / f"lenormand-{time.strftime('%Y%m%d-%H%M%S')}"
     if out.exists() and not (out / "manifest.json").is_file() and any(out.iterdir()):
         raise InputError(f"--out: {str(out)!r} exists and is not a sweep directory; choose a new one")
-    spec = {"kind": "lenormand", "log_m": args.log_m.spec(), "log_ca_star": args.log_ca.spec(),
-            "seeds": args.seeds, "packing": str(args.packing) if args.packing else None}
+    spec = lenormand_spec(args.log_m, args.log_ca, args.seeds, args.packing)
     points = lenormand_points(args.log_m, args.log_ca, args.seeds)
     try:
         manifest = Manifest.open(out, spec, points)
@@ -133,10 +121,6 @@ def run_collect(args) -> int:
     return 0
 
 
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt
-
-
 def join_axis_values(argv: list[str]) -> list[str]:
     """``--log-m -5:2:5`` -> ``--log-m=-5:2:5``: argparse would take a value starting with '-'
     (a negative START) for an option."""
@@ -154,17 +138,7 @@ def join_axis_values(argv: list[str]) -> list[str]:
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(join_axis_values(list(sys.argv[1:] if argv is None else argv)))
-    signal.signal(signal.SIGTERM, _interrupt)  # a batch system's kill ends the sweep like Ctrl-C
-    try:
-        if args.command == "lenormand":
-            return run_lenormand(args)
-        if args.command == "collect":
-            return run_collect(args)
-    except InputError as exc:
-        print(f"{PROG}: {exc}", file=sys.stderr)
-        return 2
-    parser.print_help()
-    return 2
+    return dispatch(PROG, parser, args, {"lenormand": run_lenormand, "collect": run_collect})
 
 
 if __name__ == "__main__":

@@ -26,20 +26,20 @@ from ..network.network import Network
 LABEL_RATIO = 10.0  # decisions.md #10: viscous above 10x the entry-pressure spread
 
 
-def load_network(path: Path) -> Network:
-    """A :class:`Network` from a run directory's network.npz."""
+def load_network(path: Path) -> tuple[Network, np.ndarray]:
+    """A :class:`Network` from a run directory's network.npz, and its pipes' entry pressures."""
     with np.load(path) as f:
         data = {k.name: f[k.name] for k in fields(Network) if k.name in f.files}
+        entry = f["pipe_entry_pressure"]
     data["extent"] = tuple(float(v) for v in data.get("extent", (0.0, 1.0, 0.0, 1.0)))
-    return Network(**data)
+    return Network(**data), entry
 
 
 def capillary_crossover(run_dir: Path) -> float:
     """Ca*_c at M >= 1 for the network, fluids and aperture field of one run directory."""
     run_dir = Path(run_dir)
-    net = load_network(run_dir / "network.npz")
-    with np.load(run_dir / "network.npz") as f:
-        entry = np.abs(f["pipe_entry_pressure"][net.flowing_pipes])
+    net, entry = load_network(run_dir / "network.npz")
+    entry = np.abs(entry[net.flowing_pipes])
     config = tomllib.loads((run_dir / "config.toml").read_text())
     gamma = config["fluids"]["surface_tension"]
     mean_aperture = config["case"]["mean_aperture_m"]

@@ -61,6 +61,12 @@ class SweepPoint:
         return asdict(self)
 
 
+def lenormand_spec(log_m: Axis, log_ca_star: Axis, seeds: int, packing=None) -> dict:
+    """What a Lenormand sweep is, as its manifest records it (a resumed sweep must match)."""
+    return {"kind": "lenormand", "log_m": log_m.spec(), "log_ca_star": log_ca_star.spec(), "seeds": seeds,
+            "packing": str(packing) if packing else None}
+
+
 def lenormand_points(log_m: Axis, log_ca_star: Axis, seeds: int) -> list[SweepPoint]:
     """Every (M, Ca*, seed) of the grid, seeds 0 .. seeds-1, M outermost."""
     return [SweepPoint(round(float(m), 10), round(float(c), 10), s)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import io
 import json
+import shutil
 from contextlib import redirect_stdout
 from pathlib import Path
 
@@ -47,10 +48,9 @@ def run_point(point: SweepPoint, out: Path, packing: str | None = None, recorded
 
     out = Path(out)
     if out.exists():
-        if read_summary(out) is not None:
-            return read_summary(out)
-        import shutil
-
+        finished = read_summary(out)
+        if finished is not None:
+            return finished
         shutil.rmtree(out)
     argv = cli_arguments(point, out, packing)
     with redirect_stdout(io.StringIO()):  # the run's two result lines; the sweep reports instead
