@@ -16,6 +16,7 @@ from pathlib import Path
 from . import __version__
 from .cases import CASES
 from .cli import InputError, OneLineParser, dispatch, new_run_directory, non_negative_int, positive_number
+from .flow.fluids import WEAK_COMPRESSION
 
 PROG = "python -m hmdem.hele_shaw"
 CASE_NAMES = tuple(CASES)
@@ -160,6 +161,18 @@ def run_linear(args, argv: list[str] | None = None) -> int:
     print(f"{case.name}: {rec.status} at t = {state.t:.4g} s after {rec.steps} steps; regime: {summary['regime']}, "
           f"D_f = {summary['fractal_dimension']:.3f}, peak injection pressure {summary['peak_injection_pressure_pa']:.4g} Pa")
     print(f"run directory: {out}")
+    return finish(rec, summary)
+
+
+def finish(rec, summary: dict) -> int:
+    """Warnings, then the exit status: 0 for a finished run, 130 if interrupted, 1 if it could
+    not go on (reason on stderr)."""
+    if not summary["weakly_compressible"]:
+        print(f"{PROG}: warning: the peak injection pressure is {summary['peak_compression']:.2g} of the fluid bulk "
+              f"modulus, beyond the linear equation of state's range (p/K <= {WEAK_COMPRESSION})", file=sys.stderr)
+    if rec.status == "diverged":
+        print(f"{PROG}: {rec.message}", file=sys.stderr)
+        return 1
     return 130 if rec.status == "interrupted" else 0
 
 
@@ -204,10 +217,7 @@ def run_radial(args) -> int:
           f"{summary['n_opened_contacts']} opened contacts, D_f = {summary['fractal_dimension']:.3f}, "
           f"peak injection pressure {summary['peak_injection_pressure_pa']:.4g} Pa")
     print(f"run directory: {out}")
-    if rec.status == "diverged":
-        print(f"{PROG}: {rec.message}", file=sys.stderr)
-        return 1
-    return 130 if rec.status == "interrupted" else 0
+    return finish(rec, summary)
 
 
 def main(argv=None) -> int:

@@ -12,6 +12,7 @@ import numpy as np
 
 from . import __version__
 from .flow.diagnostics import classify_regime, fractal_dimension, mass_radius_dimension
+from .flow.fluids import WEAK_COMPRESSION
 from .plots import plot_pattern, plot_pressure
 from .rundir import atomic_run_directory, json_safe, write_toml
 
@@ -60,6 +61,8 @@ def summarize(sc, model, state, rec, d_f: float | None = None) -> dict:
         "breakthrough_saturation": saturation if rec.status == "breakthrough" else float("nan"),
         "final_saturation": saturation,
         "peak_injection_pressure_pa": rec.peak_injection_pressure,
+        "peak_compression": fluids.compression(rec.peak_injection_pressure),
+        "weakly_compressible": fluids.compression(rec.peak_injection_pressure) <= WEAK_COMPRESSION,
         "final_injection_pressure_pa": float(p_in[-1]),
         "median_injection_pressure_pa": float(np.median(p_in)),
         "median_entry_pressure_pa": float(np.median(entry)),

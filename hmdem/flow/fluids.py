@@ -11,6 +11,12 @@ from dataclasses import dataclass
 import numpy as np
 
 
+# Largest p/K for which the linear equation of state (constant K, digest §4) describes a
+# liquid: at p/K = 0.1 it differs from the exponential law rho0 exp(p/K) by 0.5 % in density.
+# Runs beyond it (e.g. Ca* = 100 at M = 1e-5: 1.3 GPa against K = 2 GPa) are flagged.
+WEAK_COMPRESSION = 0.1
+
+
 @dataclass(frozen=True)
 class FluidPair:
     """Invading and defending fluid properties (SI units).
@@ -34,6 +40,11 @@ class FluidPair:
     @property
     def cos_theta(self) -> float:
         return float(np.cos(np.deg2rad(self.contact_angle_deg)))
+
+    def compression(self, pressure: float) -> float:
+        """p / K of the softer fluid: how far a pressure strains the linear equation of state
+        (compare :data:`WEAK_COMPRESSION`)."""
+        return float(pressure) / min(self.bulk_modulus_inv, self.bulk_modulus_def)
 
     def mixture_bulk_modulus(self, saturation: np.ndarray) -> np.ndarray:
         """K_f,i = S K_inv + (1 - S) K_def (seed 004 Eq. 3, arithmetic by saturation)."""

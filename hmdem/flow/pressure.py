@@ -19,6 +19,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 
 from .ordering import nested_dissection
 from .sparse import CsrPattern, SpdSolver
@@ -171,7 +173,8 @@ class PressureSystem:
             B = source_node + self.pipe_source_to_nodes(old_flux)
             B_size = np.abs(source_node) + self.pipe_source_to_nodes(np.abs(old_flux), sign_a=1.0)
             residual = self.residual(storage_node, source_node, p_old, g_open, orient, entry_pressure)
-            increment = self.domain_values(self.solver.solve(A, B, residual=residual, b_size=B_size))
+            increment = self.domain_values(self.solver.solve(A, B, residual=residual, b_size=B_size, storage=storage_node,
+                                                             floating=self.floating_components(g_open)))
             p = p_old + increment
             dp = p[self.pipe_a] - p[self.pipe_b]
             margin = np.where(front, orient * dp + entry_pressure, 0.0)
@@ -188,6 +191,21 @@ class PressureSystem:
             blocked = new_blocked
         flux = g_open * (dp + orient * entry_pressure)
         return PressureSolution(p, flux, used, margin, passes, increment)
+
+    def floating_components(self, g_open: np.ndarray) -> np.ndarray:
+        """Per unknown, a label of its component of open pipes if that component has no open
+        pipe to a Dirichlet domain (a shut-in island: only its storage fixes its level), else -1."""
+        n = self.n_unknowns
+        inner = self.vab & (g_open > 0.0)
+        graph = sp.coo_matrix((np.ones(inner.sum()), (self.na[inner], self.nb[inner])), shape=(n, n))
+        _, label = connected_components(graph, directed=False)
+        to_dirichlet = (self.va != self.vb) & (g_open > 0.0)
+        grounded_node = np.where(self.va, self.na, self.nb)[to_dirichlet]
+        grounded = np.zeros(label.max() + 1 if n else 0, bool)
+        grounded[label[grounded_node]] = True
+        floating = ~grounded
+        new_label = np.cumsum(floating) - 1
+        return np.where(floating[label], new_label[label], -1)
 
     def divergence(self, pipe_flux: np.ndarray) -> np.ndarray:
         """Net pipe outflow of every domain, sum_j q_ij (per domain, Dirichlet ones included)."""

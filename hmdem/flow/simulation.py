@@ -21,7 +21,6 @@ from .pressure import PressureSolution, PressureSystem
 from .sparse import LinearSolveError
 
 MAX_EQ18_PASSES = 30
-SINGULAR_STEP_CUTS = 3  # a solve singular at dt is retried at 1e-3, 1e-6, 1e-9 of dt
 
 
 class SimulationDiverged(RuntimeError):
@@ -78,7 +77,10 @@ class RunRecord:
         injected = rate * t
         return abs(self.stored_volume + self.outflow_volume - injected) / injected if injected > 0 else 0.0
 
-    columns = ("t", "dt", "p_in_mean", "q_in", "q_out", "saturation", "energy", "dissipation", "n_invaded", "limiter")
+    wall_start: float = field(default_factory=time.perf_counter)
+
+    columns = ("t", "dt", "p_in_mean", "q_in", "q_out", "saturation", "energy", "dissipation", "n_invaded", "limiter",
+               "wall_s")
 
 
 class FlowModel:
@@ -199,62 +201,31 @@ class FlowModel:
                 # which the first of them opens, so that pipe openings, like domain fillings
                 # (Eq. 18), happen one event per step and the pattern does not depend on the
                 # nominal dt. When the whole front is shut this is the paper's Eq. 19 case.
-                try:
-                    held, held_fill = self._trial(state, dt, g, orient, pc, shut, hold=True)
-                    margin_end = held.margin[shut]
-                except LinearSolveError:
-                    held, margin_end = None, self._held_margins_extrapolated(state, dt, g, orient, pc, shut, m0[shut])
-                dt19 = fr.blocked_front_step(dt, m0[shut], margin_end, self.setup.chi)
+                held, held_fill = self._trial(state, dt, g, orient, pc, shut, hold=True)
+                dt19 = fr.blocked_front_step(dt, m0[shut], held.margin[shut], self.setup.chi)
                 if dt19 < dt:
                     dt, limiter = dt19, "eq19"
-                elif held is not None and np.all(held.margin[shut] <= 0.0) and np.all(held.margin[front & ~shut] > 0.0):
+                elif np.all(held.margin[shut] <= 0.0) and np.all(held.margin[front & ~shut] > 0.0):
                     # shut pipes stay shut and open ones open: the held solution already
                     # satisfies Eq. 6 everywhere, so it is the active-set solution at this dt
                     solved = held, held_fill
-        if solved is None:
-            solved, dt, limiter = self._solve_shortening(state, dt, limiter, g, orient, pc, blocked_guess)
-        sol, fill = solved
+        sol, fill = solved or self._trial(state, dt, g, orient, pc, blocked_guess)
         if self.setup.two_phase:
             sol, fill, dt, refined = self._refine_overfill(state, dt, sol, fill, g, orient, pc)
             if refined:
                 limiter = "eq18"
         return sol, fill, dt, limiter
 
-    def _solve_shortening(self, state, dt, limiter, g, orient, pc, blocked_guess):
-        """The step's solve at dt; if the system is singular in double precision (storage
-        V/(K dt) below the resolution of the conductances, nominal steps of ~1e7 s at
-        Ca* ~ 1e-8), at dt / 1000 instead, up to :data:`SINGULAR_STEP_CUTS` times."""
-        for cut in range(SINGULAR_STEP_CUTS + 1):
-            try:
-                return self._trial(state, dt, g, orient, pc, blocked_guess), dt, limiter
-            except LinearSolveError:
-                if cut == SINGULAR_STEP_CUTS:
-                    raise
-                dt, limiter = dt * 1e-3, "conditioning"
-
-    def _held_margins_extrapolated(self, state, dt, g, orient, pc, shut, start):
-        """Margins of the shut pipes at dt from a held solve over a shorter horizon, linearly
-        extrapolated. For a very long nominal step (Ca* ~ 1e-8) an invaded island with every
-        front pipe shut is tied to the rest only by its storage V/(K dt), which falls below the
-        double-precision resolution of its conductances; over a horizon 1000x shorter it does
-        not, and with constant inflow into storage the margins grow linearly in time from
-        ``start`` (their values at p^n)."""
-        horizon = dt
-        for _ in range(SINGULAR_STEP_CUTS):
-            horizon *= 1e-3
-            try:
-                held, _ = self._trial(state, horizon, g, orient, pc, shut, hold=True)
-            except LinearSolveError:
-                continue
-            return start + (held.margin[shut] - start) * (dt / horizon)
-        raise LinearSolveError(f"held pressure solve failed down to {horizon:.3g} s (nominal step {dt:.3g} s)")
-
     def _refine_overfill(self, state, dt, sol, fill, g, orient, pc):
-        """Shorten dt until exactly one domain fills (seed 004 Eq. 18, iterated; digest U10)."""
+        """Shorten dt until exactly one domain fills (seed 004 Eq. 18, iterated; digest U10).
+
+        If the passes run out, the longest trial that overfilled nothing is taken, so a step
+        never fills a domain past S = 1."""
         s_new = state.saturation + dt * fill / self.volume
         if not np.any(s_new > 1.0 + fr.FILL_TOLERANCE):
             return sol, fill, dt, False
         dt_lo, dt_hi = 0.0, dt
+        under = None  # (sol, fill, dt) of the longest trial that overfilled nothing
         for _ in range(MAX_EQ18_PASSES):
             over = s_new > 1.0 + fr.FILL_TOLERANCE
             if over.any():
@@ -262,13 +233,16 @@ class FlowModel:
                 t_fill = fr.fill_times(self.volume, state.saturation, fill)
                 target = int(np.argmin(np.where(over, t_fill, np.inf)))
             elif s_new.max() >= 1.0 - fr.FILL_TOLERANCE:
-                break
-            else:
-                dt_lo = max(dt_lo, dt)
+                return sol, fill, dt, True
+            elif dt > dt_lo:
+                dt_lo, under = dt, (sol, fill, dt)
             guess = float(fr.fill_times(self.volume[target], state.saturation[target], fill[target]))
-            dt = guess if dt_lo < guess < dt_hi else 0.5 * (dt_lo + dt_hi)
-            sol, fill = self._trial(state, dt, g, orient, pc, sol.blocked)
+            trial_dt = guess if dt_lo < guess < dt_hi else 0.5 * (dt_lo + dt_hi)
+            sol, fill = self._trial(state, trial_dt, g, orient, pc, sol.blocked)
+            dt = trial_dt
             s_new = state.saturation + dt * fill / self.volume
+        if under is not None and np.any(s_new > 1.0 + fr.FILL_TOLERANCE):
+            sol, fill, dt = under
         return sol, fill, dt, True
 
     # ---- explicit step (Eqs. 29-30) --------------------------------------------------------
@@ -312,7 +286,6 @@ class FlowModel:
         self.record = rec = RunRecord()
         step = self.implicit_step if self.setup.scheme == "implicit" else self.explicit_step
         blocked = np.zeros(len(self.pipes), bool)
-        wall0 = time.perf_counter()
         try:
             while True:
                 if self.setup.two_phase and state.invaded[self.outlet].any():
@@ -334,7 +307,10 @@ class FlowModel:
         except SimulationDiverged as exc:
             rec.status = "diverged"
             rec.message = str(exc)
-        rec.wall_time = time.perf_counter() - wall0
+        except LinearSolveError as exc:  # the state is that of the last completed step
+            rec.status = "diverged"
+            rec.message = f"step {rec.steps + 1} at t = {state.t:.6g} s: {exc}"
+        rec.wall_time = time.perf_counter() - rec.wall_start
         if rec.status == "breakthrough":
             rec.breakthrough_time = state.t
         return state, rec
@@ -373,4 +349,5 @@ class FlowModel:
         rec.eq19_steps += limiter == "eq19"
         sat = float(np.sum(state.saturation * self.volume) / np.sum(self.volume))
         rec.rows.append((state.t, dt, p_in, self.setup.rate, q_out, sat, rec.injection_energy,
-                         rec.dissipated_energy, int(state.invaded.sum()), limiter))
+                         rec.dissipated_energy, int(state.invaded.sum()), limiter,
+                         round(time.perf_counter() - rec.wall_start, 3)))

@@ -17,6 +17,7 @@ REFINED = 1e-17  # stop refining at this residual relative to the terms of b
 
 # a failed solve, not round-off: near-singular held systems (Eq. 19) reach ~1e-7 unpivoted
 FAILED = 1e-5
+ROUND_OFF = 64 * np.finfo(float).eps  # a row residual this small against its terms is round-off
 
 
 def refine(correction, b: np.ndarray, residual, size: float) -> tuple[np.ndarray, float]:
@@ -84,7 +85,8 @@ class SpdSolver:
             self._order = (q, permuted.indices, permuted.indptr, permuted.data.astype(np.int64) - 1)
         return self._order
 
-    def solve(self, A: sp.csr_matrix, b: np.ndarray, rtol: float = 1e-12, residual=None, b_size=None) -> np.ndarray:
+    def solve(self, A: sp.csr_matrix, b: np.ndarray, rtol: float = 1e-12, residual=None, b_size=None,
+              storage=None, floating=None) -> np.ndarray:
         """x with A x = b.
 
         ``residual(x)``, if given, returns b - A x computed more accurately than from the stored
@@ -93,6 +95,9 @@ class SpdSolver:
         ``b_size`` (>= |b| per row): the size of the terms b was summed from. Near a steady
         state b is a small difference of large terms, and the failure check compares the
         residual with those terms rather than with b itself.
+        ``storage`` (the diagonal's storage part) and ``floating`` (per unknown: a component
+        label, -1 where the component reaches a Dirichlet value) let a system whose floating
+        components are singular in double precision be solved by :func:`floating_solve`.
         """
         n = A.shape[0]
         if n == 0:
@@ -116,6 +121,14 @@ class SpdSolver:
             y, res = refine(correction, bs, scaled_residual, size)
         except RuntimeError:  # SuperLU without pivoting met a zero pivot
             y, res = None, np.inf
+        if (not np.isfinite(res) or res > FAILED) and floating is not None and np.any(floating >= 0):
+            try:
+                deflated = floating_solve(A, storage, floating)
+                y, _ = refine(lambda r: deflated(r / scale) / scale, bs, scaled_residual, size)
+                res = floating_residual(As, y, scaled_residual(y), scale, size, floating,
+                                        np.abs(b) if b_size is None else b_size)
+            except RuntimeError:
+                y, res = None, np.inf
         if (not np.isfinite(res) or res > FAILED) and n <= DIRECT_MAX_UNKNOWNS:
             # near-singular without pivoting, e.g. an Eq. 19 held system whose invaded island of
             # a nearly inviscid, stiff fluid is tied to the rest only by its storage V/(K dt)
@@ -153,3 +166,61 @@ class SpdSolver:
 
         preconditioner = pyamg.smoothed_aggregation_solver(As, symmetry="symmetric").aspreconditioner()
         return lambda r: spla.cg(As, r, rtol=rtol, maxiter=500, M=preconditioner)[0]
+
+
+def floating_residual(As, y, r, scale, size, floating, b_size) -> float:
+    """Relative residual of a solution with shut-in islands (scaled system As y = b S, residual
+    r): the rows that reach a Dirichlet value against ``size`` as usual; each island's summed
+    rows, its mass balance, against the size of its terms. Inside an island a residual at the
+    round-off of its row's terms, |A| |x|, counts as zero: the island sits at a level
+    sum(b)/sum(storage) so far above its internal pressure differences (~b/G) that double
+    precision resolves them only to ~eps level/difference, and no solve can do better."""
+    r = np.asarray(r, float)
+    member = floating >= 0
+    grounded = np.linalg.norm(r[~member]) / size
+    label = floating[member]
+    defect = np.abs(np.bincount(label, r[member] / scale[member]))
+    terms = np.bincount(label, b_size[member])
+    islands = np.max(defect / np.maximum(terms, np.finfo(float).tiny), initial=0.0)
+    floor = ROUND_OFF * (abs(As) @ np.abs(y))[member]
+    interior = 0.0 if np.all(np.abs(r[member]) <= floor) else np.inf
+    return float(max(grounded, islands, interior))
+
+
+def floating_solve(A: sp.csr_matrix, storage: np.ndarray, floating: np.ndarray):
+    """Solve function for A = L + diag(storage) whose floating components (no path to a
+    Dirichlet value; ``floating`` labels them, -1 elsewhere) are singular in double precision.
+
+    A floating component's equations sum to storage . x = sum b (the pipe terms cancel), so with
+    x = c + y and storage . y = 0 its level is c = sum b / sum storage exactly, and y solves the
+    compatible system L y = b - c storage. That system is solved with one node of the component
+    held at 0 (a grounded Laplacian, well conditioned) and y shifted to storage . y = 0. For an
+    invaded island shut in by capillarity over a very long step (storage V/(K dt) ~1e-17 of its
+    conductances) this is the uniform pressure rise Q dt / sum(V/K) the island must take; the
+    residual left in the held node is ~storage/conductance and goes in the caller's refinement.
+    """
+    n = A.shape[0]
+    member = np.flatnonzero(floating >= 0)
+    label = floating[member]
+    n_comp = int(label.max()) + 1
+    total = np.bincount(label, storage[member], n_comp)
+    if np.any(total[np.unique(label)] <= 0.0):
+        raise LinearSolveError("floating component without storage (incompressible and shut in): singular")
+    _, first = np.unique(label, return_index=True)
+    keep = np.ones(n, bool)
+    keep[member[first]] = False
+    sub = A[keep][:, keep].tocsc()
+    scale = 1.0 / np.sqrt(sub.diagonal())
+    lu = spla.splu((sp.diags(scale) @ sub @ sp.diags(scale)).tocsc(), permc_spec="COLAMD")
+
+    def solve(b):
+        level = np.bincount(label, b[member], n_comp) / total
+        rhs = b.copy()
+        rhs[member] -= level[label] * storage[member]
+        x = np.zeros(n)
+        x[keep] = scale * lu.solve(scale * rhs[keep])
+        shift = np.bincount(label, storage[member] * x[member], n_comp) / total
+        x[member] += level[label] - shift[label]
+        return x
+
+    return solve

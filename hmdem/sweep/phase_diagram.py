@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..flow.fluids import WEAK_COMPRESSION
+
 REGIME_COLOURS = {
     "capillary fingering": "#f4a259",
     "viscous fingering": "#5b8fd9",
@@ -32,7 +34,8 @@ def cell_edges(values: np.ndarray) -> np.ndarray:
 
 
 def point_summary(rows: list[dict]) -> dict:
-    """(log_m, log_ca_star) -> (majority regime or 'failed', mean D_f, runs, failed runs)."""
+    """(log_m, log_ca_star) -> (majority regime or 'failed', mean D_f, runs, failed runs,
+    largest p/K)."""
     groups: dict = {}
     for r in rows:
         key = (round(float(r["log_m"]), 6), round(float(r["log_ca_star"]), 6))
@@ -44,7 +47,9 @@ def point_summary(rows: list[dict]) -> dict:
         regime = regimes.most_common(1)[0][0] if ok else "failed"
         d_f = [float(r["fractal_dimension"]) for r in ok if r.get("fractal_dimension") not in (None, "")
                and math.isfinite(float(r["fractal_dimension"]))]
-        out[key] = (regime, float(np.mean(d_f)) if d_f else math.nan, len(group), len(group) - len(ok))
+        compression = [float(r["peak_compression"]) for r in ok if r.get("peak_compression") not in (None, "")]
+        out[key] = (regime, float(np.mean(d_f)) if d_f else math.nan, len(group), len(group) - len(ok),
+                    max(compression, default=math.nan))
     return out
 
 
@@ -60,7 +65,7 @@ def plot_phase_diagram(path: Path, rows: list[dict], crossover: float | None = N
         ms = np.array(sorted({k[0] for k in points}))
         cs = np.array(sorted({k[1] for k in points}))
         m_edges, c_edges = cell_edges(ms), cell_edges(cs)
-        for (m, c), (regime, d_f, n, failed) in points.items():
+        for (m, c), (regime, d_f, n, failed, compression) in points.items():
             i, j = np.searchsorted(ms, m), np.searchsorted(cs, c)
             ax.add_patch(Rectangle((m_edges[i], c_edges[j]), m_edges[i + 1] - m_edges[i], c_edges[j + 1] - c_edges[j],
                                    facecolor=REGIME_COLOURS.get(regime, OTHER_COLOUR), edgecolor="white",
@@ -68,6 +73,8 @@ def plot_phase_diagram(path: Path, rows: list[dict], crossover: float | None = N
             label = "failed" if regime == "failed" else f"D$_f$ {d_f:.2f}" if math.isfinite(d_f) else "D$_f$ n/a"
             if failed and regime != "failed":
                 label += f"\n{failed}/{n} failed"
+            if compression > WEAK_COMPRESSION:
+                label += f"\np/K {compression:.2f} !"
             ax.text(m, c, label, ha="center", va="center", fontsize=8)
         x_lim, y_lim = (m_edges[0], m_edges[-1]), (c_edges[0], c_edges[-1])
     else:
@@ -91,6 +98,8 @@ def plot_phase_diagram(path: Path, rows: list[dict], crossover: float | None = N
         right.set_ylabel(f"log$_{{10}}$ Ca (plain: Ca = Ca* ā / L = Ca* / {1 / 10 ** shift:.1f})")
     handles = [Patch(color=c, label=name) for name, c in REGIME_COLOURS.items()]
     handles.append(Patch(facecolor=OTHER_COLOUR, hatch="//", label="failed / other"))
+    handles.append(plt.Line2D([], [], ls="", label=f"'p/K 0.64 !': peak pressure / bulk modulus beyond the linear "
+                              f"equation of state's {WEAK_COMPRESSION}"))
     handles.append(plt.Line2D([], [], marker="*", ls="", ms=12, color="grey", mec="black",
                               label="Lenormand et al. (1988) experiments (seed 004 §4.1)"))
     if crossover is not None:

@@ -17,7 +17,7 @@ from pathlib import Path
 from .grid import SweepPoint
 
 BASE_CASE = "sd"
-INCOMPLETE = ("interrupted",)  # statuses of a run directory that does not count as done
+INCOMPLETE = ("interrupted", "diverged")  # statuses of a run directory that does not count as done
 
 
 def cli_arguments(point: SweepPoint, out: Path, packing: str | None = None) -> list[str]:
@@ -30,7 +30,7 @@ def cli_arguments(point: SweepPoint, out: Path, packing: str | None = None) -> l
 
 
 def read_summary(run_dir: Path) -> dict | None:
-    """summary.json of a finished run directory; None if absent or the run was interrupted."""
+    """summary.json of a finished run directory; None if absent, interrupted or stopped by a failed solve."""
     path = Path(run_dir) / "summary.json"
     if not path.is_file():
         return None
@@ -57,5 +57,7 @@ def run_point(point: SweepPoint, out: Path, packing: str | None = None, recorded
         code = run_linear(build_parser().parse_args(argv), recorded_as or argv)
     summary = read_summary(out)
     if code != 0 or summary is None:
-        raise RuntimeError(f"run {point.run_id} ended with exit status {code}")
+        written = out / "summary.json"
+        reason = json.loads(written.read_text()).get("status_message") if written.is_file() else ""
+        raise RuntimeError(f"run {point.run_id} ended with exit status {code}" + (f": {reason}" if reason else ""))
     return summary

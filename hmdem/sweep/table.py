@@ -15,6 +15,7 @@ from ..rundir import write_text_atomic
 
 COLUMNS = ["run", "log_m", "log_ca_star", "viscosity_ratio", "ca_star", "ca", "seed", "status", "regime",
            "fractal_dimension", "breakthrough_time_s", "breakthrough_saturation", "peak_injection_pressure_pa",
+           "peak_compression",
            "injection_energy_j", "dissipated_energy_j", "steps", "wall_time_s", "error"]
 # columns that differ between two executions of the same runs
 TIMING_COLUMNS = ("wall_time_s",)
@@ -43,7 +44,8 @@ def run_row(root: Path, run_dir: Path) -> dict:
     # log10 rounded to 1e-9: 10 ** 0.25 read back gives 0.24999999999999997, not the grid's 0.25
     row.update(run=run_dir.relative_to(root).as_posix(), log_m=round(math.log10(m), 9),
                log_ca_star=round(math.log10(ca_star), 9),
-               viscosity_ratio=m, ca_star=ca_star, ca=ca, seed=config.get("run", {}).get("seed"), error="")
+               viscosity_ratio=m, ca_star=ca_star, ca=ca, seed=config.get("run", {}).get("seed"),
+               error=summary.get("status_message", "") if summary.get("status") == "diverged" else "")
     return row
 
 
@@ -64,7 +66,13 @@ def failed_rows(root: Path) -> list[dict]:
 def collect(root: Path) -> list[dict]:
     """All rows of a sweep directory, ordered by M, Ca*, seed."""
     root = Path(root)
-    rows = [run_row(root, d) for d in run_directories(root)] + failed_rows(root)
+    rows = [run_row(root, d) for d in run_directories(root)]
+    by_run = {r["run"]: r for r in rows}
+    for failed in failed_rows(root):
+        if failed["run"] in by_run:  # a run that stopped on a failed solve wrote its directory
+            by_run[failed["run"]]["error"] = failed["error"]
+        else:
+            rows.append(failed)
     return sorted(rows, key=lambda r: (r["log_m"], r["log_ca_star"], r.get("seed") or 0, r["run"]))
 
 
