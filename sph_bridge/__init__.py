@@ -1,4 +1,8 @@
 """sph_bridge: companion package for flow in fractures (PF-SPH, Richards coupling, FHP lattice gas).
 
-Planned in issues 5 and 6; nothing is implemented yet, and nothing here claims to be.
+Issue 5 (PF-SPH, seed 000) is in progress: the kernel, cell lists, particle sums (density,
+pressure, viscous and pairwise forces), wall treatment and the Verlet time loop exist and are
+unit-tested (tests/test_sph_pfsph.py); the validation cases (hydrostatic column, Poiseuille
+flow, sessile droplet), the calibration routine and the ``python -m sph_bridge`` command do not
+exist yet. Issue 6 (lattice gas) is not started.
 """

@@ -1,0 +1,104 @@
+"""PF-SPH particle sums (seed 000 §2.3-2.9): density, pressure, and the accelerations from the
+pressure, viscous and pairwise interaction forces, gathered per particle over a cell list.
+
+Every function loops over particles in parallel (numba ``prange``) and over the neighbour cells
+of :class:`sph_bridge.cells.CellGrid`; no pair list is stored, so memory stays linear in N.
+Particles are fluid (``fluid`` True) or fixed wall particles. Pair terms are antisymmetric in
+(i, j), so with fluid only they conserve momentum to round-off (digest §7 #4).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .kernel import INTERACTION_RANGE, interaction_shape, wendland, wendland_gradient_over_r
+
+
+@njit(parallel=True, cache=True)
+def density(pos, mass, h, cell, order, start, neighbours, shifts, inner):
+    """rho_i = sum_j m_j W(r_ij, h) over every particle, itself and walls included (seed 000
+    Eq. 15; digest §2.3: the sum runs over all N particles)."""
+    n = pos.shape[0]
+    rho = np.empty(n)
+    h2 = h * h
+    for i in prange(n):
+        c = cell[i]
+        total = 0.0
+        for k in range(inner):
+            nc = neighbours[c, k]
+            if nc < 0:
+                continue
+            for idx in range(start[nc], start[nc + 1]):
+                j = order[idx]
+                dx = pos[i, 0] - pos[j, 0] - shifts[c, k, 0]
+                dy = pos[i, 1] - pos[j, 1] - shifts[c, k, 1]
+                dz = pos[i, 2] - pos[j, 2] - shifts[c, k, 2]
+                r2 = dx * dx + dy * dy + dz * dz
+                if r2 < h2:
+                    total += mass[j] * wendland(math.sqrt(r2), h)
+        rho[i] = total
+    return rho
+
+
+def pressure(rho: np.ndarray, rho0: np.ndarray, c0: float, p0: float = 0.0) -> np.ndarray:
+    """Tait equation of state P = c0^2 rho0 / 7 ((rho/rho0)^7 - 1) + P0 (seed 000 Eq. 13; P0 is
+    not given in the paper, 0 by default: digest §2.4)."""
+    return c0 * c0 * rho0 / 7.0 * ((rho / rho0) ** 7 - 1.0) + p0
+
+
+@njit(parallel=True, cache=True)
+def accelerations(pos, vel, mass, rho, pressure, viscosity, fluid, s_ff, s_sf, h, gravity,
+                  cell, order, start, neighbours, shifts):
+    """dv_i/dt of every fluid particle (0 for walls), seed 000 Eq. 11:
+
+    - pressure, Eq. 16 with the sign restored (digest §2.5): -sum_j m_j (P_i/rho_i^2 + P_j/rho_j^2) grad_i W_ij;
+    - viscosity, Morris et al. (1997), Eq. 17: sum_j m_j (mu_i + mu_j)/(rho_i rho_j) v_ij (1/r) dW/dr;
+    - pairwise interaction, Eq. 27: s [8 f(2r/h) - f(r/h)] e_ij / m_i with s = s_ff between fluid
+      particles and s_sf with a wall particle (range 2h);
+    - gravity.
+
+    ``vel`` is the velocity the forces see: the extrapolated v-bar of the Verlet scheme for fluid
+    particles and the Eq. 25 extrapolation for walls (digest §2.10, §2.9b).
+    """
+    n = pos.shape[0]
+    acc = np.zeros((n, 3))
+    cutoff2 = (INTERACTION_RANGE * h) ** 2
+    h2 = h * h
+    for i in prange(n):
+        if not fluid[i]:
+            continue
+        c = cell[i]
+        p_i = pressure[i] / (rho[i] * rho[i])
+        ax, ay, az = gravity[0], gravity[1], gravity[2]
+        for k in range(neighbours.shape[1]):
+            nc = neighbours[c, k]
+            if nc < 0:
+                continue
+            for idx in range(start[nc], start[nc + 1]):
+                j = order[idx]
+                if j == i:
+                    continue
+                dx = pos[i, 0] - pos[j, 0] - shifts[c, k, 0]
+                dy = pos[i, 1] - pos[j, 1] - shifts[c, k, 1]
+                dz = pos[i, 2] - pos[j, 2] - shifts[c, k, 2]
+                r2 = dx * dx + dy * dy + dz * dz
+                if r2 >= cutoff2 or r2 == 0.0:
+                    continue
+                r = math.sqrt(r2)
+                s = s_ff if fluid[j] else s_sf
+                f = s * interaction_shape(r, h) / (r * mass[i])
+                if r2 < h2:
+                    grad = wendland_gradient_over_r(r, h)  # grad_i W_ij = (dx, dy, dz) * grad
+                    f -= mass[j] * (p_i + pressure[j] / (rho[j] * rho[j])) * grad
+                    visc = mass[j] * (viscosity[i] + viscosity[j]) / (rho[i] * rho[j]) * grad
+                    ax += visc * (vel[i, 0] - vel[j, 0])
+                    ay += visc * (vel[i, 1] - vel[j, 1])
+                    az += visc * (vel[i, 2] - vel[j, 2])
+                ax += f * dx
+                ay += f * dy
+                az += f * dz
+        acc[i, 0], acc[i, 1], acc[i, 2] = ax, ay, az
+    return acc

@@ -1,0 +1,209 @@
+"""sph_bridge PF-SPH core (issue 5): kernel, cell lists, density and pair forces (seed 000 digest §2, §7)."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import quad
+from scipy.optimize import brentq, minimize_scalar
+
+from sph_bridge.cells import CellGrid
+from sph_bridge.kernel import (INTERACTION_RANGE, interaction_shape, lattice_sum, support, wendland,
+                               wendland_gradient_over_r)
+from sph_bridge.pfsph import accelerations, density, pressure
+
+
+def test_wendland_kernel_has_unit_integral():
+    # digest §7 #1: 21/(2 pi h^3) (1-q)^4 (1+4q) integrates to 1 (the printed (1-q)^3 form to 0.70)
+    h = 0.37
+    integral = quad(lambda r: 4 * math.pi * r * r * wendland(r, h), 0.0, h, epsabs=1e-13, epsrel=1e-13)[0]
+    assert abs(integral - 1.0) < 1e-6
+
+
+def test_kernel_gradient_is_the_derivative_of_the_kernel():
+    # grad_i W_ij = r_ij (1/r) dW/dr: check (1/r) dW/dr against a central difference of W
+    h = 1.3
+    for r in np.linspace(0.05, 1.25, 13):
+        step = 1e-6
+        slope = (wendland(r + step, h) - wendland(r - step, h)) / (2 * step)
+        assert abs(r * wendland_gradient_over_r(r, h) - slope) < 1e-7 * abs(wendland(0.0, h) / h)
+    assert wendland(h, h) == 0.0 and wendland_gradient_over_r(h, h) == 0.0
+
+
+def test_lattice_density_and_neighbour_count():
+    # digest §7 #2, #3: h = 40^(1/3) dx = 3.41995 dx, 170 neighbours within h on a cubic lattice,
+    # lattice sum 1.00195 (so bulk density 1.00195 m/dx^3)
+    dx = 1e-3
+    h = support(dx)
+    assert h / dx == pytest.approx(3.41995, abs=5e-6)
+    assert lattice_sum(h, dx) == pytest.approx(1.00195, rel=1e-4)
+    idx = np.arange(-4, 5)
+    i, j, k = np.meshgrid(idx, idx, idx, indexing="ij")
+    r = dx * np.sqrt(i**2 + j**2 + k**2)
+    assert np.count_nonzero((r > 0) & (r < h)) == 170
+
+
+def lattice(n, dx):
+    axis = (np.arange(n) + 0.5) * dx
+    return np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1).reshape(-1, 3)
+
+
+def sph_density(pos, mass, h, lo, hi, periodic):
+    grid = CellGrid(lo, hi, periodic, h)
+    cell, order, start = grid.bin(pos)
+    return density(pos, mass, h, cell, order, start, grid.neighbours, grid.shifts, grid.inner)
+
+
+def test_periodic_lattice_density_is_the_bulk_value_everywhere():
+    # a fully periodic 18^3 lattice has no surface: every particle sums to the lattice sum
+    dx, n = 1e-3, 18
+    h = support(dx)
+    pos = lattice(n, dx)
+    rho = sph_density(pos, np.full(len(pos), 1000 * dx**3), h, [0, 0, 0], [n * dx] * 3, [True] * 3)
+    assert np.allclose(rho, 1000 * lattice_sum(h, dx), rtol=1e-12)
+
+
+def brute_force_density(pos, mass, h, length, periodic):
+    d = pos[:, None, :] - pos[None, :, :]
+    for a in range(3):
+        if periodic[a]:
+            d[:, :, a] -= length[a] * np.round(d[:, :, a] / length[a])
+    r = np.sqrt((d**2).sum(-1))
+    w = np.vectorize(wendland)(r, h)
+    return (w * mass[None, :]).sum(1)
+
+
+def test_cell_list_density_matches_all_pairs():
+    # random particles, periodic along x only, some outside the box along z (edge cells)
+    rng = np.random.default_rng(3)
+    h = 0.2
+    length = np.array([1.0, 0.9, 0.8])
+    pos = rng.random((700, 3)) * length
+    pos[:20, 2] += 0.15  # beyond hi on a non-periodic axis
+    mass = rng.uniform(0.5, 1.5, len(pos))
+    periodic = [True, False, False]
+    rho = sph_density(pos, mass, h, [0, 0, 0], length, periodic)
+    assert np.allclose(rho, brute_force_density(pos, mass, h, length, periodic), rtol=1e-12)
+
+
+def test_interaction_force_shape():
+    # digest §2.7: F(0) = 7 s, sign change at r = 0.675 h, most attractive at 0.862 h with -0.324 s,
+    # zero from 2 h
+    assert interaction_shape(0.0, 1.0) == 7.0
+    assert brentq(lambda r: interaction_shape(r, 1.0), 0.3, 0.8) == pytest.approx(0.675, abs=5e-4)
+    well = minimize_scalar(lambda r: interaction_shape(r, 1.0), bounds=(0.7, 1.2), method="bounded")
+    assert well.x == pytest.approx(0.862, abs=1e-3) and well.fun == pytest.approx(-0.324, abs=5e-4)
+    assert interaction_shape(INTERACTION_RANGE, 1.0) == 0.0
+
+
+def test_pair_forces_conserve_momentum():
+    # digest §7 #4: pressure, viscous and pairwise forces are antisymmetric, so with fluid only
+    # and no gravity sum_i m_i a_i = 0 to round-off
+    rng = np.random.default_rng(7)
+    dx = 1e-3
+    h = support(dx)
+    pos = lattice(12, dx) + rng.normal(0, 0.1 * dx, (12**3, 3))
+    n = len(pos)
+    mass = np.full(n, 1000 * dx**3)
+    length = np.array([12 * dx] * 3)
+    grid = CellGrid([0, 0, 0], length, [False] * 3, h)
+    cell, order, start = grid.bin(pos)
+    rho = density(pos, mass, h, cell, order, start, grid.neighbours, grid.shifts, grid.inner)
+    p = pressure(rho, np.full(n, 1000.0), c0=2.0)
+    vel = rng.normal(0, 0.05, (n, 3))
+    acc = accelerations(pos, vel, mass, rho, p, np.full(n, 1e-3), np.ones(n, bool), 3e-5, 8e-6, h,
+                        np.zeros(3), cell, order, start, grid.neighbours, grid.shifts)
+    force = mass[:, None] * acc
+    assert np.abs(force.sum(0)).max() < 1e-13 * np.abs(force).sum(0).max()
+    assert np.abs(force).sum() > 0  # forces are there to cancel
+
+
+def flat_wall_scene(dx=1e-3, n=12, depth=10):
+    """Fluid on the lattice above a 3-layer wall whose nominal surface is z = 0, periodic in x, y."""
+    from sph_bridge.geometry import lattice_block, wall_slab
+
+    length = n * dx
+    fluid = lattice_block([0, 0, 0], [length, length, depth * dx], dx)
+    wall = wall_slab(2, 0.0, +1, [0, 0, 0], [length, length, 0], dx)
+    pos = np.concatenate([fluid, wall])
+    is_fluid = np.zeros(len(pos), bool)
+    is_fluid[: len(fluid)] = True
+    grid = CellGrid([0, 0, -3 * dx], [length, length, (depth + 4) * dx], [True, True, False], support(dx), reach=1)
+    return pos, is_fluid, grid
+
+
+def test_proximity_ratio_and_normal_at_a_flat_wall():
+    # seed 000 Eq. 21: phi = 0.5 on the nominal surface, 1 from h into the fluid; the colour
+    # gradient points into the fluid (+z). A particle pushed 0.3 dx into the wall has phi < 0.5
+    # and bounces back along +z by beta dx (1 - phi/0.5) (Eq. 24)
+    from sph_bridge.walls import bounce_back, proximity
+
+    dx = 1e-3
+    h = support(dx)
+    pos, is_fluid, grid = flat_wall_scene(dx)
+    probe = np.flatnonzero(is_fluid & (np.abs(pos[:, 0] - 6.5 * dx) < 1e-9) & (np.abs(pos[:, 1] - 6.5 * dx) < 1e-9))
+    first = probe[np.argmin(pos[probe, 2])]
+    pos[first, 2] = -0.3 * dx
+    mass = np.full(len(pos), 1000 * dx**3)
+    cell, order, start = grid.bin(pos)
+    lists = (cell, order, start, grid.neighbours, grid.shifts, grid.inner)
+    rho = density(pos, mass, h, *lists)
+    phi, normal, _ = proximity(pos, mass, rho, is_fluid, h, *lists)
+    deep = is_fluid & (pos[:, 2] > h + dx)
+    assert np.allclose(phi[deep], 1.0)
+    assert phi[first] < 0.5
+    assert np.allclose(normal[first], [0, 0, 1], atol=1e-12)
+    z_before = pos[first, 2]
+    vel = np.ones((len(pos), 3))
+    assert bounce_back(pos, (vel,), phi, normal, is_fluid, dx) == 1
+    assert pos[first, 2] - z_before == pytest.approx(dx * (1 - phi[first] / 0.5), rel=1e-12)
+    assert np.all(vel[first] == 0) and np.all(vel[probe[1]] == 1)
+    # on the nominal surface itself the fluid and wall lattices are mirror images within h, so
+    # phi = 0.5 (Eq. 21) but for the particle's own W(0), fluid, and the lattice site 0.5 dx above
+    # it that it vacated
+    pos[first, 2] = 0.0
+    cell, order, start = grid.bin(pos)
+    lists = (cell, order, start, grid.neighbours, grid.shifts, grid.inner)
+    phi, _, _ = proximity(pos, mass, density(pos, mass, h, *lists), is_fluid, h, *lists)
+    k = np.arange(-4, 5)
+    i, j, k = np.meshgrid(k, k, k, indexing="ij")
+    w = np.vectorize(wendland)(dx * np.sqrt(i**2 + j**2 + (k + 0.5) ** 2), h)
+    half = w[k >= 0].sum()  # the fluid side; the wall side (3 layers) is its mirror image within h
+    own = wendland(0.0, h) - wendland(0.5 * dx, h)
+    assert phi[first] == pytest.approx((half + own) / (2 * half + own), rel=1e-12)
+    assert abs(phi[first] - 0.5) < 0.01
+
+
+def test_wall_particles_mirror_the_fluid_velocity():
+    # seed 000 Eq. 25 with a wall at rest: a uniform fluid velocity U gives every wall particle
+    # within reach of the fluid -U, so the Morris term sees 2U across the wall (no slip)
+    from sph_bridge.walls import wall_velocity
+
+    dx = 1e-3
+    pos, is_fluid, grid = flat_wall_scene(dx)
+    vel = np.where(is_fluid[:, None], np.array([0.3, -0.1, 0.0]), 0.0)
+    cell, order, start = grid.bin(pos)
+    seen = wall_velocity(pos, vel, is_fluid, support(dx), cell, order, start, grid.neighbours, grid.shifts, grid.inner)
+    assert np.allclose(seen[~is_fluid], [-0.3, 0.1, 0.0], rtol=1e-12)
+    assert np.array_equal(seen[is_fluid], vel[is_fluid])
+
+
+def test_verlet_steps_conserve_momentum_in_a_periodic_fluid():
+    # digest §7 #4: no walls, no gravity, every pair force on (pressure, viscosity, pairwise):
+    # total momentum stays at its initial value to round-off over the steps
+    from sph_bridge.simulation import Simulation, SphParameters
+
+    dx = 5e-4
+    n = 18  # 5 cells of h per periodic length (pairwise force range 2h)
+    rng = np.random.default_rng(11)
+    fluid = lattice(n, dx) + rng.normal(0, 0.05 * dx, (n**3, 3))
+    params = SphParameters(dx=dx, c0=1.5, rho0_fluid=930.0, s_ff=3e-5, s_sf=8e-6, gravity=(0.0, 0.0, 0.0))
+    sim = Simulation(fluid, np.zeros((0, 3)), params, [0, 0, 0], [n * dx] * 3, (True, True, True))
+    sim.vel[:] = rng.normal(0, 0.02, sim.vel.shape)
+    p_start = (sim.mass[:, None] * sim.vel).sum(0)
+    scale = (sim.mass[:, None] * np.abs(sim.vel)).sum()
+    for _ in range(5):
+        sim.step()
+    p_end = (sim.mass[:, None] * sim.vel).sum(0)
+    assert np.abs(p_end - p_start).max() < 1e-12 * scale
+    assert np.abs(sim.acc).max() > 1.0  # the forces are not trivially zero
