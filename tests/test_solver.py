@@ -274,3 +274,39 @@ def test_floating_components_are_the_islands_cut_off_from_every_dirichlet_domain
     assert list(system.floating_components(np.array([1.0, 0.0, 1.0, 1.0]))) == [0, 0, -1, -1]
     assert list(system.floating_components(np.array([1.0, 1.0, 1.0, 0.0]))) == [0, 0, 0, 0]
     assert list(system.floating_components(np.ones(4))) == [-1, -1, -1, -1]
+
+
+def test_an_island_level_from_a_tiny_nonzero_pivot_is_caught():
+    # Review finding: a 10-node chain reaching a Dirichlet value and a 10-node shut-in island
+    # (storage 1e-17 of its conductances, inflow 1e-9 against 1 in the chain). Unpivoted LU meets a
+    # tiny non-zero pivot instead of a zero one and returned the island at 4.7e6 instead of
+    # sum(b)/sum(storage) = 1e7 with a small residual for the whole system; the island's own mass
+    # balance now rejects that, and the floating-island solve gives the exact level.
+    import hmdem.flow.sparse as sparse
+
+    rng = np.random.default_rng(1)
+    n = 20
+    pipes = np.array([(i, i + 1) for i in range(9)] + [(i, i + 1) for i in range(10, 19)])
+    g = rng.uniform(0.5, 2.0, len(pipes))
+    laplacian = np.zeros((n, n))
+    for (i, j), gij in zip(pipes, g):
+        laplacian[[i, j], [i, j]] += gij
+        laplacian[i, j] = laplacian[j, i] = -gij
+    laplacian[0, 0] += 1.0  # node 0's pipe to the Dirichlet domain
+    storage = np.full(n, 1e-17)
+    b = np.zeros(n)
+    b[5], b[15] = 1.0, 1e-9
+
+    def residual(x):  # per-pipe fluxes in extended precision, as PressureSystem.residual
+        x = np.asarray(x, np.longdouble)
+        out = b.astype(np.longdouble) - storage.astype(np.longdouble) * x
+        flux = g.astype(np.longdouble) * (x[pipes[:, 0]] - x[pipes[:, 1]])
+        np.subtract.at(out, pipes[:, 0], flux)
+        np.add.at(out, pipes[:, 1], flux)
+        out[0] -= x[0]
+        return out
+
+    floating = np.array([-1] * 10 + [0] * 10)
+    x = sparse.SpdSolver().solve(sp.csr_matrix(laplacian + np.diag(storage)), b, residual=residual,
+                                 b_size=np.abs(b), storage=storage, floating=floating)
+    assert np.allclose(x[10:], 1e-9 / 1e-16, rtol=1e-12)

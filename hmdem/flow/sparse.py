@@ -116,17 +116,22 @@ class SpdSolver:
             return residual(y * scale) * scale
 
         size = bnorm if b_size is None else max(bnorm, np.linalg.norm(b_size * scale))
+        islands = floating is not None and bool(np.any(floating >= 0))
+        b_terms = np.abs(b) if b_size is None else b_size
         try:
             correction = self._direct(As) if n <= DIRECT_MAX_UNKNOWNS else self._amg(As, rtol)
             y, res = refine(correction, bs, scaled_residual, size)
+            if islands and res <= FAILED:
+                # an island's level rests on its storage alone: a tiny non-zero pivot can leave it
+                # wrong while the residual of the whole system looks small
+                res = max(res, island_defect(scaled_residual(y), scale, floating, b_terms))
         except RuntimeError:  # SuperLU without pivoting met a zero pivot
             y, res = None, np.inf
-        if (not np.isfinite(res) or res > FAILED) and floating is not None and np.any(floating >= 0):
+        if (not np.isfinite(res) or res > FAILED) and islands:
             try:
                 deflated = floating_solve(A, storage, floating)
                 y, _ = refine(lambda r: deflated(r / scale) / scale, bs, scaled_residual, size)
-                res = floating_residual(As, y, scaled_residual(y), scale, size, floating,
-                                        np.abs(b) if b_size is None else b_size)
+                res = floating_residual(As, y, scaled_residual(y), scale, size, floating, b_terms)
             except RuntimeError:
                 y, res = None, np.inf
         if (not np.isfinite(res) or res > FAILED) and n <= DIRECT_MAX_UNKNOWNS:
@@ -168,23 +173,32 @@ class SpdSolver:
         return lambda r: spla.cg(As, r, rtol=rtol, maxiter=500, M=preconditioner)[0]
 
 
+def island_defect(r, scale, floating, b_size) -> float:
+    """Largest mass defect of a shut-in island: |sum of its rows' residuals| (the pipe terms
+    cancel, leaving sum b - storage . x) over the sum of its rows' term sizes ``b_size``.
+    ``r`` is the residual of the scaled system (row i multiplied by ``scale[i]``)."""
+    member = floating >= 0
+    label = floating[member]
+    defect = np.abs(np.bincount(label, np.asarray(r, float)[member] / scale[member]))
+    terms = np.bincount(label, b_size[member])
+    return float(np.max(defect / np.maximum(terms, np.finfo(float).tiny), initial=0.0))
+
+
 def floating_residual(As, y, r, scale, size, floating, b_size) -> float:
     """Relative residual of a solution with shut-in islands (scaled system As y = b S, residual
-    r): the rows that reach a Dirichlet value against ``size`` as usual; each island's summed
-    rows, its mass balance, against the size of its terms. Inside an island a residual at the
-    round-off of its row's terms, |A| |x|, counts as zero: the island sits at a level
-    sum(b)/sum(storage) so far above its internal pressure differences (~b/G) that double
-    precision resolves them only to ~eps level/difference, and no solve can do better."""
+    r): the rows that reach a Dirichlet value against ``size`` as usual, and each island's mass
+    balance (:func:`island_defect`). Inside an island a row residual at the round-off of the row's
+    terms, |A| |x|, is accepted: the island sits at a level sum(b)/sum(storage) so far above its
+    internal pressure differences (~b/G) that double precision resolves them only to
+    ~eps level/difference, and no solve can do better. A larger one fails the solution (inf)."""
     r = np.asarray(r, float)
     member = floating >= 0
     grounded = np.linalg.norm(r[~member]) / size
-    label = floating[member]
-    defect = np.abs(np.bincount(label, r[member] / scale[member]))
-    terms = np.bincount(label, b_size[member])
-    islands = np.max(defect / np.maximum(terms, np.finfo(float).tiny), initial=0.0)
     floor = ROUND_OFF * (abs(As) @ np.abs(y))[member]
-    interior = 0.0 if np.all(np.abs(r[member]) <= floor) else np.inf
-    return float(max(grounded, islands, interior))
+    interior_at_round_off = bool(np.all(np.abs(r[member]) <= floor))
+    if not interior_at_round_off:
+        return np.inf
+    return float(max(grounded, island_defect(r, scale, floating, b_size)))
 
 
 def floating_solve(A: sp.csr_matrix, storage: np.ndarray, floating: np.ndarray):

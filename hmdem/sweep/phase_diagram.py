@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ..flow.fluids import WEAK_COMPRESSION
+from .table import NO_RESULT
 
 REGIME_COLOURS = {
     "capillary fingering": "#f4a259",
@@ -42,7 +43,7 @@ def point_summary(rows: list[dict]) -> dict:
         groups.setdefault(key, []).append(r)
     out = {}
     for key, group in groups.items():
-        ok = [r for r in group if r.get("status") != "failed"]
+        ok = [r for r in group if r.get("status") not in NO_RESULT]
         regimes = Counter(r.get("regime") for r in ok)
         regime = regimes.most_common(1)[0][0] if ok else "failed"
         d_f = [float(r["fractal_dimension"]) for r in ok if r.get("fractal_dimension") not in (None, "")

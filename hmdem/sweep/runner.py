@@ -42,7 +42,7 @@ def run_point(point: SweepPoint, out: Path, packing: str | None = None, recorded
     """Run one point into ``out`` (written atomically by the run itself); its summary.
 
     ``recorded_as``: the command line config.toml records (default: the one run here). A run
-    directory left by an interrupted run is replaced. Raises on any failure; the sweep records
+    directory left by an interrupted or diverged run is replaced. Raises on any failure; the sweep records
     the error text."""
     from ..hele_shaw import build_parser, run_linear
 

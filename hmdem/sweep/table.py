@@ -19,6 +19,8 @@ COLUMNS = ["run", "log_m", "log_ca_star", "viscosity_ratio", "ca_star", "ca", "s
            "injection_energy_j", "dissipated_energy_j", "steps", "wall_time_s", "error"]
 # columns that differ between two executions of the same runs
 TIMING_COLUMNS = ("wall_time_s",)
+# statuses of rows that carry no result: no run, a run stopped by a failed solve, or by Ctrl-C
+NO_RESULT = ("failed", "diverged", "interrupted")
 
 
 def run_directories(root: Path) -> list[Path]:
@@ -69,7 +71,7 @@ def collect(root: Path) -> list[dict]:
     rows = [run_row(root, d) for d in run_directories(root)]
     by_run = {r["run"]: r for r in rows}
     for failed in failed_rows(root):
-        if failed["run"] in by_run:  # a run that stopped on a failed solve wrote its directory
+        if failed["run"] in by_run:  # a directory left by a run stopped on a failed solve
             by_run[failed["run"]]["error"] = failed["error"]
         else:
             rows.append(failed)
