@@ -168,8 +168,8 @@ def finish(rec, summary: dict) -> int:
     """Warnings, then the exit status: 0 for a finished run, 130 if interrupted, 1 if it could
     not go on (reason on stderr)."""
     if not summary["weakly_compressible"]:
-        print(f"{PROG}: warning: the peak injection pressure is {summary['peak_compression']:.2g} of the fluid bulk "
-              f"modulus, beyond the linear equation of state's range (p/K <= {WEAK_COMPRESSION})", file=sys.stderr)
+        print(f"{PROG}: warning: a domain's pressure reached {summary['peak_compression']:.2g} of its fluid's bulk "
+              f"modulus; a constant K is accurate only up to p/K = {WEAK_COMPRESSION}", file=sys.stderr)
     if rec.status == "diverged":
         print(f"{PROG}: {rec.message}", file=sys.stderr)
         return 1

@@ -11,9 +11,10 @@ from dataclasses import dataclass
 import numpy as np
 
 
-# Largest p/K for which the linear equation of state (constant K, digest §4) describes a
-# liquid: at p/K = 0.1 it differs from the exponential law rho0 exp(p/K) by 0.5 % in density.
-# Runs beyond it (e.g. Ca* = 100 at M = 1e-5: 1.3 GPa against K = 2 GPa) are flagged.
+# Largest p/K up to which a constant bulk modulus (linear equation of state, digest §4) is
+# accurate: at p/K = 0.1 it differs from rho0 exp(p/K) by 0.5 % in density, and for a gas K
+# itself (~ the absolute pressure) has grown by 10 %. Runs beyond it in some domain are
+# flagged (e.g. Ca* = 100 at M = 1e-5: 1.3 GPa in oil with K = 2 GPa; the Huang cases' air).
 WEAK_COMPRESSION = 0.1
 
 
@@ -40,11 +41,6 @@ class FluidPair:
     @property
     def cos_theta(self) -> float:
         return float(np.cos(np.deg2rad(self.contact_angle_deg)))
-
-    def compression(self, pressure: float) -> float:
-        """p / K of the softer fluid: how far a pressure strains the linear equation of state
-        (compare :data:`WEAK_COMPRESSION`)."""
-        return float(pressure) / min(self.bulk_modulus_inv, self.bulk_modulus_def)
 
     def mixture_bulk_modulus(self, saturation: np.ndarray) -> np.ndarray:
         """K_f,i = S K_inv + (1 - S) K_def (seed 004 Eq. 3, arithmetic by saturation)."""

@@ -63,6 +63,7 @@ class RunRecord:
     injection_energy: float = 0.0
     dissipated_energy: float = 0.0
     peak_injection_pressure: float = 0.0
+    peak_compression: float = 0.0  # max over steps and domains of p_i / K_f,i (Eq. 3 mixture)
     max_mass_balance_error: float = 0.0
     stored_volume: float = 0.0  # sum over steps of sum_i (V_i/K_i)(p^{n+1} - p^n)
     outflow_volume: float = 0.0  # sum over steps of Q_out dt
@@ -326,6 +327,8 @@ class FlowModel:
         dp = sol.pressure[self.pipe_a] - sol.pressure[self.pipe_b]
         rec.dissipated_energy += float(np.sum(sol.pipe_flux * dp)) * dt  # Eq. 26, viscous part
         rec.peak_injection_pressure = max(rec.peak_injection_pressure, p_in)
+        compression = sol.pressure / self.fluids.mixture_bulk_modulus(state.saturation)
+        rec.peak_compression = max(rec.peak_compression, float(compression.max()))
         # discrete mass balance of the step (digest U8): sum_i [(V_i/K_i)(p^{n+1} - p^n) + dV_i] =
         # (Q_in - Q_out) dt, with p^{n+1} - p^n the increment the scheme produced. Storing
         # p^n + increment in a double rounds it by ~1e-16 |p|, which in the shortest Eq. 18 steps

@@ -99,8 +99,8 @@ def plot_phase_diagram(path: Path, rows: list[dict], crossover: float | None = N
         right.set_ylabel(f"log$_{{10}}$ Ca (plain: Ca = Ca* ā / L = Ca* / {1 / 10 ** shift:.1f})")
     handles = [Patch(color=c, label=name) for name, c in REGIME_COLOURS.items()]
     handles.append(Patch(facecolor=OTHER_COLOUR, hatch="//", label="failed / other"))
-    handles.append(plt.Line2D([], [], ls="", label=f"'p/K 0.64 !': peak pressure / bulk modulus beyond the linear "
-                              f"equation of state's {WEAK_COMPRESSION}"))
+    handles.append(plt.Line2D([], [], ls="", label=f"'p/K 0.64 !': peak pressure / bulk modulus beyond "
+                              f"{WEAK_COMPRESSION}, the constant-K range"))
     handles.append(plt.Line2D([], [], marker="*", ls="", ms=12, color="grey", mec="black",
                               label="Lenormand et al. (1988) experiments (seed 004 §4.1)"))
     if crossover is not None:
