@@ -49,6 +49,11 @@ def pressure(rho: np.ndarray, rho0: np.ndarray, c0: float, p0: float = 0.0) -> n
     return c0 * c0 * rho0 / 7.0 * ((rho / rho0) ** 7 - 1.0) + p0
 
 
+def density_from_pressure(p: np.ndarray, rho0: np.ndarray, c0: float, p0: float = 0.0) -> np.ndarray:
+    """The inverse of :func:`pressure` (Eq. 13), clipped at a tension that would empty the particle."""
+    return rho0 * np.maximum(1.0 + 7.0 * (p - p0) / (c0 * c0 * rho0), 1e-6) ** (1.0 / 7.0)
+
+
 @njit(parallel=True, cache=True)
 def accelerations(pos, vel, mass, rho, pressure, viscosity, fluid, s_ff, s_sf, h, gravity,
                   cell, order, start, neighbours, shifts):

@@ -22,8 +22,8 @@ import numpy as np
 
 from .cells import CellGrid
 from .kernel import INTERACTION_RANGE, lattice_sum, support
-from .pfsph import accelerations, density, pressure
-from .walls import bounce_back, proximity, wall_velocity
+from .pfsph import accelerations, density, density_from_pressure, pressure
+from .walls import bounce_back, proximity, wall_pressure, wall_velocity
 
 GRAVITY = 9.81  # m/s^2 (not printed in seed 000; digest §2.8)
 FULL_KERNEL = 0.98  # number density / bulk lattice value above which a particle has no surface within h
@@ -43,6 +43,7 @@ class SphParameters:
     s_sf: float = 0.0
     gravity: tuple = (0.0, 0.0, -GRAVITY)
     p0: float = 0.0  # EOS background pressure (not given in the paper)
+    damping: float = 0.0  # [1/s] fluid velocities decay as exp(-damping t): relaxation of static cases only
 
     @property
     def h(self) -> float:
@@ -94,11 +95,15 @@ class Simulation:
         return self.cell, self.order, self.start, self.grid.neighbours, self.grid.shifts
 
     def _accelerations(self, vel_seen):
-        g = self.grid
+        g, p, walls = self.grid, self.params, ~self.fluid
         self.rho = density(self.pos, self.mass, self.h, *self._lists(), g.inner)
-        self.pressure = pressure(self.rho, self.rho0, self.params.c0, self.params.p0)
+        self.pressure = pressure(self.rho, self.rho0, p.c0, p.p0)
+        # walls take the fluid's pressure, extrapolated with its hydrostatic head (decisions #33),
+        # and the density that pressure implies
+        self.pressure = wall_pressure(self.pos, self.pressure, self.rho, self.fluid, self.gravity, self.h,
+                                      *self._lists(), g.inner)
+        self.rho[walls] = density_from_pressure(self.pressure[walls], self.rho0[walls], p.c0, p.p0)
         vel_seen = wall_velocity(self.pos, vel_seen, self.fluid, self.h, *self._lists(), g.inner)
-        p = self.params
         return accelerations(self.pos, vel_seen, self.mass, self.rho, self.pressure, self.mu, self.fluid, p.s_ff,
                              p.s_sf, self.h, self.gravity, *self._lists())
 
@@ -131,6 +136,8 @@ class Simulation:
         self.acc = self._accelerations(v_bar)
         self.vel = v_half
         self.vel[f] += 0.5 * dt * self.acc[f]
+        if self.params.damping:
+            self.vel[f] *= math.exp(-self.params.damping * dt)
         self.t += dt
         self.record.steps += 1
         self.record.bounced += bounced

@@ -112,3 +112,38 @@ def bounce_back(pos, vel_list, phi, normal, fluid, dx):
         for v in vel_list:
             v[inside] = 0.0
     return int(inside.sum())
+
+
+@njit(parallel=True, cache=True)
+def wall_pressure(pos, pressure, rho, fluid, gravity, h, cell, order, start, neighbours, shifts, inner):
+    """pressure with every wall particle's entry replaced by the extrapolation of the fluid's,
+    P_w = (sum_f P_f W_wf + g . sum_f rho_f (r_w - r_f) W_wf) / sum_f W_wf (Adami et al. 2012 for
+    a wall at rest; 0 without fluid neighbours). Seed 000 gives walls no pressure rule (digest
+    §2.9a); its Eq. 25 takes the velocity from the same paper (decisions #33)."""
+    n = pos.shape[0]
+    out = pressure.copy()
+    h2 = h * h
+    for i in prange(n):
+        if fluid[i]:
+            continue
+        c = cell[i]
+        wsum, psum, head = 0.0, 0.0, 0.0
+        for k in range(inner):
+            nc = neighbours[c, k]
+            if nc < 0:
+                continue
+            for idx in range(start[nc], start[nc + 1]):
+                j = order[idx]
+                if not fluid[j]:
+                    continue
+                dx = pos[i, 0] - pos[j, 0] - shifts[c, k, 0]
+                dy = pos[i, 1] - pos[j, 1] - shifts[c, k, 1]
+                dz = pos[i, 2] - pos[j, 2] - shifts[c, k, 2]
+                r2 = dx * dx + dy * dy + dz * dz
+                if r2 < h2:
+                    w = wendland(math.sqrt(r2), h)
+                    wsum += w
+                    psum += pressure[j] * w
+                    head += rho[j] * (gravity[0] * dx + gravity[1] * dy + gravity[2] * dz) * w
+        out[i] = (psum + head) / wsum if wsum > 0.0 else 0.0
+    return out
