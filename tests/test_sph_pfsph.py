@@ -235,3 +235,29 @@ def test_closed_hydrostatic_column():
     assert slope == pytest.approx(-rho[inner].mean() * GRAVITY, rel=0.03)
     assert sim.max_density_deviation() <= 0.03
     assert sim.record.bounced == 0
+
+
+def test_body_force_poiseuille_flow_between_two_walls():
+    # Issue 5: plane Poiseuille flow driven by a body force g_x between 3-layer walls with no-slip
+    # nominal surfaces at z = 0 and H (Morris viscosity, Eq. 17; wall velocities, Eq. 25):
+    # u(z) = g z (H - z) / (2 nu) at steady state, within 5 % of u_max (issue 5). dx = 1 mm,
+    # H = 16 mm, nu = 2.6e-3 m^2/s so that the slowest mode decays in tau = H^2/(pi^2 nu) = 10 ms;
+    # read at t = 5 tau (transient e^-5 < 1 %).
+    from sph_bridge.geometry import lattice_block, wall_slab
+    from sph_bridge.simulation import Simulation, SphParameters
+
+    dx, n, layers = 1e-3, 12, 16
+    length, height = n * dx, layers * dx
+    mu, g = 2.6, 0.8
+    nu = mu / 1000.0
+    fluid = lattice_block([0, 0, 0], [length, length, height], dx)
+    walls = np.concatenate([wall_slab(2, 0.0, +1, [0, 0, 0], [length, length, 0], dx),
+                            wall_slab(2, height, -1, [0, 0, height], [length, length, height], dx)])
+    params = SphParameters(dx=dx, c0=1.0, viscosity=mu, gravity=(g, 0.0, 0.0))
+    sim = Simulation(fluid, walls, params, [0, 0, -3 * dx], [length, length, height + 3 * dx], (True, True, False))
+    tau = height**2 / (math.pi**2 * nu)
+    sim.run(5 * tau)
+    z, u = sim.pos[sim.fluid, 2], sim.vel[sim.fluid, 0]
+    u_max = g * height**2 / (8 * nu)
+    assert np.abs(u - g * z * (height - z) / (2 * nu)).max() <= 0.05 * u_max
+    assert np.abs(sim.vel[sim.fluid, 1:]).max() <= 0.01 * u_max  # no cross flow
