@@ -2,8 +2,8 @@
 
 Issue 5 (PF-SPH, seed 000) is in progress: the kernel, cell lists, particle sums (density,
 pressure, viscous and pairwise forces), wall treatment and the Verlet time loop exist and are
-tested (tests/test_sph_pfsph.py), including a closed hydrostatic column and body-force
-Poiseuille flow between two walls; the free-surface column, the sessile droplet, the
-calibration routine and the ``python -m sph_bridge`` command do not exist yet. Issue 6 (lattice
-gas) is not started.
+tested (tests/test_sph_pfsph.py). ``python -m sph_bridge {hydrostatic,poiseuille}`` runs the two
+validation cases between walls (a closed hydrostatic column and body-force Poiseuille flow) into
+run directories. The free-surface column, the sessile droplet and the calibration routine (and
+their commands) do not exist yet. Issue 6 (lattice gas) is not started.
 """

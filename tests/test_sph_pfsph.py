@@ -211,30 +211,23 @@ def test_verlet_steps_conserve_momentum_in_a_periodic_fluid():
 
 def test_closed_hydrostatic_column():
     # Issue 5 / digest §7 #5: water between two 3-layer walls (periodic sideways, dx = 1 mm,
-    # 16 layers, c0 = 4 m/s so that rho g H / (rho c0^2) = 1 %), relaxed with velocity damping
-    # (700 1/s, about twice the fundamental acoustic mode pi c0 / 2H) for 0.03 s. The pressure
-    # gradient between the walls must be rho g within 3 % (issue 5) and the density within 3 % of
-    # rho0 (Morris et al. 1997, the paper's criterion); no particle may enter a wall. Walls take
-    # the fluid's extrapolated pressure (decisions #33); with their own summation density instead
-    # the first fluid layer was pulled into the wall at ~100 m/s^2.
-    from sph_bridge.geometry import lattice_block, wall_slab
-    from sph_bridge.simulation import GRAVITY, Simulation, SphParameters
+    # 16 layers, c0 with rho g H = 1 % of rho c0^2), relaxed with velocity damping at twice the
+    # fundamental acoustic mode for 3 of its periods. The pressure gradient between the walls
+    # must be rho g within 3 % (issue 5) and the density within 3 % of rho0 (Morris et al. 1997,
+    # the paper's criterion); no particle may enter a wall. Walls take the fluid's extrapolated
+    # pressure (decisions #33); with their own summation density instead the first fluid layer
+    # was pulled into the wall at ~100 m/s^2.
+    from sph_bridge import cases
+    from sph_bridge.simulation import GRAVITY
 
-    dx, n, layers = 1e-3, 12, 16
-    length, height = n * dx, layers * dx
-    fluid = lattice_block([0, 0, 0], [length, length, height], dx)
-    walls = np.concatenate([wall_slab(2, 0.0, +1, [0, 0, 0], [length, length, 0], dx),
-                            wall_slab(2, height, -1, [0, 0, height], [length, length, height], dx)])
-    params = SphParameters(dx=dx, c0=4.0, damping=700.0)
-    sim = Simulation(fluid, walls, params, [0, 0, -3 * dx], [length, length, height + 3 * dx], (True, True, False))
-    sim.run(0.03)
-    f = sim.fluid
-    z, p, rho = sim.pos[f, 2], sim.pressure[f], sim.rho[f]
-    inner = (z > params.h) & (z < height - params.h)  # a full kernel of fluid and wall particles
-    slope = np.polyfit(z[inner], p[inner], 1)[0]
-    assert slope == pytest.approx(-rho[inner].mean() * GRAVITY, rel=0.03)
-    assert sim.max_density_deviation() <= 0.03
-    assert sim.record.bounced == 0
+    dx, layers = 1e-3, 16
+    params, t_end = cases.hydrostatic_parameters(dx, layers, GRAVITY)
+    sim = cases.channel(dx, layers, params)
+    sim.run(t_end)
+    result = cases.measure_hydrostatic(sim, layers * dx, GRAVITY).summary
+    assert result["gradient_error"] <= 0.03
+    assert result["max_density_deviation"] <= 0.03
+    assert result["bounced_particles"] == 0
 
 
 def test_body_force_poiseuille_flow_between_two_walls():
@@ -243,21 +236,43 @@ def test_body_force_poiseuille_flow_between_two_walls():
     # u(z) = g z (H - z) / (2 nu) at steady state, within 5 % of u_max (issue 5). dx = 1 mm,
     # H = 16 mm, nu = 2.6e-3 m^2/s so that the slowest mode decays in tau = H^2/(pi^2 nu) = 10 ms;
     # read at t = 5 tau (transient e^-5 < 1 %).
-    from sph_bridge.geometry import lattice_block, wall_slab
-    from sph_bridge.simulation import Simulation, SphParameters
+    from sph_bridge import cases
 
-    dx, n, layers = 1e-3, 12, 16
-    length, height = n * dx, layers * dx
-    mu, g = 2.6, 0.8
-    nu = mu / 1000.0
-    fluid = lattice_block([0, 0, 0], [length, length, height], dx)
-    walls = np.concatenate([wall_slab(2, 0.0, +1, [0, 0, 0], [length, length, 0], dx),
-                            wall_slab(2, height, -1, [0, 0, height], [length, length, height], dx)])
-    params = SphParameters(dx=dx, c0=1.0, viscosity=mu, gravity=(g, 0.0, 0.0))
-    sim = Simulation(fluid, walls, params, [0, 0, -3 * dx], [length, length, height + 3 * dx], (True, True, False))
-    tau = height**2 / (math.pi**2 * nu)
-    sim.run(5 * tau)
-    z, u = sim.pos[sim.fluid, 2], sim.vel[sim.fluid, 0]
-    u_max = g * height**2 / (8 * nu)
-    assert np.abs(u - g * z * (height - z) / (2 * nu)).max() <= 0.05 * u_max
-    assert np.abs(sim.vel[sim.fluid, 1:]).max() <= 0.01 * u_max  # no cross flow
+    dx, layers, g = 1e-3, 16, 0.8
+    params, t_end = cases.poiseuille_parameters(dx, layers, g, viscosity=2.6)
+    sim = cases.channel(dx, layers, params)
+    sim.run(t_end)
+    result = cases.measure_poiseuille(sim, layers * dx, g).summary
+    assert result["max_profile_error"] <= 0.05
+    assert result["max_cross_velocity_m_per_s"] <= 0.01 * result["theory_max_velocity_m_per_s"]  # no cross flow
+
+
+def test_command_line_run_directory_and_bad_input(tmp_path):
+    # issue 5 interface: python -m sph_bridge <case> writes config.toml, summary.json,
+    # timeseries.csv, a ParaView point cloud and a PNG; bad input is one line naming the
+    # parameter, exit status 2, nothing written
+    import json
+    import subprocess
+    import sys
+
+    import meshio
+
+    cmd = [sys.executable, "-m", "sph_bridge"]
+    out = tmp_path / "p"
+    proc = subprocess.run(cmd + ["poiseuille", "--layers", "8", "--out", str(out), "--quiet"], capture_output=True,
+                          text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert {p.name for p in out.iterdir()} == {"config.toml", "summary.json", "timeseries.csv", "particles.vtu",
+                                                "profile.png"}
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "finished" and summary["fluid_particles"] == 12 * 12 * 8
+    assert summary["max_profile_error"] <= 0.05
+    cloud = meshio.read(out / "particles.vtu")
+    assert len(cloud.points) == summary["particles"] and "velocity" in cloud.point_data
+    for args, name in ((["poiseuille", "--dx", "-1"], "--dx"), (["hydrostatic", "--layers", "4"], "--layers"),
+                       (["poiseuille", "--viscosity", "nan"], "--viscosity")):
+        bad = tmp_path / "bad"
+        proc = subprocess.run(cmd + args + ["--out", str(bad)], capture_output=True, text=True)
+        lines = proc.stderr.strip().splitlines()
+        assert proc.returncode == 2 and len(lines) == 1 and name in lines[0]
+        assert not bad.exists()
