@@ -3,6 +3,9 @@ density sum on a periodic water lattice, and memory per particle.
 
     .venv/bin/python benchmarks/sph_pairs.py [--particles 100000] [--repeats 5]
 
+Then whole Verlet steps of a periodic fluid box of the same particles (particle-steps per
+second).
+
 A pair evaluation is one (i, j) pair within the force range 2h visited by the force sum (each
 unordered pair twice, gathered per particle), or within h by the density sum. Memory is the
 resident-set growth from before the particles are made to after one step's sums, per particle.
@@ -82,6 +85,19 @@ def main(argv=None) -> None:
     print(f"density sum: {min(t_density):.3f} s per call, {density_pairs} pairs per particle "
           f"-> {n * density_pairs / min(t_density):.3g} pair evaluations/s")
     print(f"memory: {per_particle:.0f} bytes per particle (peak RSS growth)")
+
+    # whole Verlet steps (two density sums, proximity, wall pressure and velocity, forces)
+    from sph_bridge.simulation import Simulation, SphParameters
+
+    params = SphParameters(dx=dx, c0=1.5, s_ff=3e-5, s_sf=8e-6, gravity=(0.0, 0.0, 0.0))
+    sim = Simulation(pos, np.zeros((0, 3)), params, [0, 0, 0], [n_side * dx] * 3, (True, True, True))
+    sim.step()  # warm
+    t0 = time.perf_counter()
+    for _ in range(args.repeats):
+        sim.step()
+    per_step = (time.perf_counter() - t0) / args.repeats
+    print(f"Verlet step: {per_step:.3f} s -> {n / per_step:.3g} particle-steps/s; "
+          f"memory with the simulation: {(peak_rss_bytes() - rss0) / n:.0f} bytes per particle")
 
 
 if __name__ == "__main__":
