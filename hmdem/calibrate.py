@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import math
 import platform
 import sys
@@ -24,7 +23,8 @@ from pathlib import Path
 
 from . import __version__
 from .cli import InputError, OneLineParser, int_at_least, new_run_directory, non_negative_int, positive_number
-from .rundir import atomic_run_directory, json_safe
+from .rundir import atomic_run_directory
+from .rundir import write_json as write_strict_json
 
 PROG = "python -m hmdem.calibrate"
 MIN_GRAINS = 50  # fewer discs do not make a packing with a load-bearing interior
@@ -94,7 +94,7 @@ def provenance(argv) -> dict:
 
 
 def write_json(path: Path, data: dict) -> None:
-    path.write_text(json.dumps(json_safe(data), indent=2, default=float) + "\n")
+    write_strict_json(path, data, default=float)
 
 
 # --------------------------------------------------------------------------------------- biaxial

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import csv
-import json
 import platform
 from dataclasses import asdict
 from pathlib import Path
@@ -14,7 +12,7 @@ from . import __version__
 from .flow.diagnostics import classify_regime, fractal_dimension, mass_radius_dimension
 from .flow.fluids import WEAK_COMPRESSION
 from .plots import plot_pattern, plot_pressure
-from .rundir import atomic_run_directory, json_safe, write_toml
+from .rundir import atomic_run_directory, write_json, write_rows, write_toml
 
 
 def grain_diameter(net) -> float:
@@ -113,11 +111,8 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
     }
     with atomic_run_directory(out) as tmp:
         write_toml(tmp / "config.toml", config)
-        (tmp / "summary.json").write_text(json.dumps(json_safe(summary), indent=2) + "\n")
-        with open(tmp / "timeseries.csv", "w", newline="") as f:
-            w = csv.writer(f)
-            w.writerow(rec.columns)
-            w.writerows(rec.rows)
+        write_json(tmp / "summary.json", summary)
+        write_rows(tmp / "timeseries.csv", rec.columns, rec.rows)
         arrays = net.arrays()
         arrays["pipe_entry_pressure"] = sc.setup.fluids.entry_pressure(net.pipe_aperture)
         np.savez_compressed(tmp / "network.npz", **arrays)

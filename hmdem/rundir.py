@@ -7,6 +7,7 @@ directory under the final name; a Ctrl-C'd run is still written, with status "in
 
 from __future__ import annotations
 
+import csv
 import json
 import math
 import os
@@ -77,3 +78,16 @@ def write_text_atomic(path: Path, text: str) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def write_json(path: Path, data: dict, default=None) -> None:
+    """Strict JSON (non-finite floats as null), indented; ``default`` as for :func:`json.dumps`."""
+    Path(path).write_text(json.dumps(json_safe(data), indent=2, default=default) + "\n")
+
+
+def write_rows(path: Path, columns, rows) -> None:
+    """A CSV file: a header of ``columns``, then ``rows`` (timeseries.csv)."""
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(columns)
+        w.writerows(rows)

@@ -12,8 +12,6 @@ Ctrl-C stops the run and writes the directory with status "interrupted".
 
 from __future__ import annotations
 
-import csv
-import json
 import sys
 import time
 from dataclasses import asdict
@@ -22,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from hmdem.cli import OneLineParser, dispatch, int_at_least, new_run_directory, positive_number
-from hmdem.rundir import atomic_run_directory, json_safe, write_toml
+from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_toml
 
 from . import cases
 
@@ -30,10 +28,13 @@ PROG = "python -m sph_bridge"
 MIN_LAYERS = 8  # the channel must hold a full kernel (h = 3.42 dx) from each wall
 
 
+class _Parser(OneLineParser):
+    command = PROG
+
+
 def build_parser() -> OneLineParser:
-    OneLineParser.command = PROG
-    parser = OneLineParser(prog=PROG, description="PF-SPH validation cases (seed 000)")
-    sub = parser.add_subparsers(dest="command", parser_class=OneLineParser)
+    parser = _Parser(prog=PROG, description="PF-SPH validation cases (seed 000)")
+    sub = parser.add_subparsers(dest="command", parser_class=_Parser)
     for name, text in (("hydrostatic", "water at rest between two walls under gravity: dP/dz = rho g"),
                        ("poiseuille", "body-force flow between two walls: the parabolic profile")):
         p = sub.add_parser(name, help=text, description=text)
@@ -88,16 +89,13 @@ def write_run(out: Path, args, sim, summary: dict, profile) -> None:
 
     from hmdem.plots import plt
 
-    config = {"run": {"command": f"{PROG} " + " ".join(sys.argv[1:]), "case": args.command},
+    config = {"run": {"command": f"{PROG} " + " ".join(args.argv), "case": args.command},
               "geometry": {"dx_m": args.dx, "layers": args.layers, "side_cells": cases.SIDE_CELLS},
               "parameters": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(sim.params).items()}}
     with atomic_run_directory(out) as tmp:
         write_toml(tmp / "config.toml", config)
-        (tmp / "summary.json").write_text(json.dumps(json_safe(summary), indent=2) + "\n")
-        with open(tmp / "timeseries.csv", "w", newline="") as f:
-            w = csv.writer(f)
-            w.writerow(sim.record.columns)
-            w.writerows(sim.record.rows)
+        write_json(tmp / "summary.json", summary)
+        write_rows(tmp / "timeseries.csv", sim.record.columns, sim.record.rows)
         points = sim.pos
         cells = [("vertex", np.arange(len(points)).reshape(-1, 1))]
         meshio.write(tmp / "particles.vtu", meshio.Mesh(points, cells, point_data={
@@ -118,6 +116,7 @@ def write_run(out: Path, args, sim, summary: dict, profile) -> None:
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)  # recorded in config.toml
     return dispatch(PROG, parser, args, {"hydrostatic": run_case, "poiseuille": run_case})
 
 

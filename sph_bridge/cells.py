@@ -87,3 +87,13 @@ def bin_particles(pos, lo, width, dims, periodic, length):
         order[fill[cell[i]]] = i
         fill[cell[i]] += 1
     return cell, order, start
+
+
+@njit(inline="always")
+def separation(pos, i, j, shift):
+    """r_i - (r_j + shift) and its squared length: particle j seen from i through a neighbour
+    table entry whose periodic image shift is ``shift`` (:meth:`CellGrid._table`)."""
+    dx = pos[i, 0] - pos[j, 0] - shift[0]
+    dy = pos[i, 1] - pos[j, 1] - shift[1]
+    dz = pos[i, 2] - pos[j, 2] - shift[2]
+    return dx, dy, dz, dx * dx + dy * dy + dz * dz

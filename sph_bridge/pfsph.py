@@ -14,6 +14,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from .cells import separation
 from .kernel import INTERACTION_RANGE, interaction_shape, wendland, wendland_gradient_over_r
 
 
@@ -33,10 +34,7 @@ def density(pos, mass, h, cell, order, start, neighbours, shifts, inner):
                 continue
             for idx in range(start[nc], start[nc + 1]):
                 j = order[idx]
-                dx = pos[i, 0] - pos[j, 0] - shifts[c, k, 0]
-                dy = pos[i, 1] - pos[j, 1] - shifts[c, k, 1]
-                dz = pos[i, 2] - pos[j, 2] - shifts[c, k, 2]
-                r2 = dx * dx + dy * dy + dz * dz
+                _, _, _, r2 = separation(pos, i, j, shifts[c, k])
                 if r2 < h2:
                     total += mass[j] * wendland(math.sqrt(r2), h)
         rho[i] = total
@@ -86,15 +84,12 @@ def accelerations(pos, vel, mass, rho, pressure, viscosity, fluid, s_ff, s_sf, h
                 j = order[idx]
                 if j == i:
                     continue
-                dx = pos[i, 0] - pos[j, 0] - shifts[c, k, 0]
-                dy = pos[i, 1] - pos[j, 1] - shifts[c, k, 1]
-                dz = pos[i, 2] - pos[j, 2] - shifts[c, k, 2]
-                r2 = dx * dx + dy * dy + dz * dz
+                dx, dy, dz, r2 = separation(pos, i, j, shifts[c, k])
                 if r2 >= cutoff2 or r2 == 0.0:
                     continue
                 r = math.sqrt(r2)
                 s = s_ff if fluid[j] else s_sf
-                f = s * interaction_shape(r, h) / (r * mass[i])
+                f = s * interaction_shape(r, h) / (r * mass[i]) if s != 0.0 else 0.0
                 if r2 < h2:
                     grad = wendland_gradient_over_r(r, h)  # grad_i W_ij = (dx, dy, dz) * grad
                     f -= mass[j] * (p_i + pressure[j] / (rho[j] * rho[j])) * grad

@@ -23,7 +23,7 @@ import numpy as np
 from .cells import CellGrid
 from .kernel import INTERACTION_RANGE, lattice_sum, support
 from .pfsph import accelerations, density, density_from_pressure, pressure
-from .walls import bounce_back, proximity, wall_pressure, wall_velocity
+from .walls import bounce_back, proximity, wall_state
 
 GRAVITY = 9.81  # m/s^2 (not printed in seed 000; digest §2.8)
 FULL_KERNEL = 0.98  # number density / bulk lattice value above which a particle has no surface within h
@@ -83,6 +83,7 @@ class Simulation:
         self.record = StepRecord()
         self.wall_start = time.perf_counter()
         self.number_density = np.zeros(n)
+        self.bulk_number_density = lattice_sum(self.h, p.dx) / p.dx**3
         self._bin()
         self.acc = self._accelerations(self.vel)
         self.dt = self.stable_step()
@@ -94,16 +95,17 @@ class Simulation:
     def _lists(self):
         return self.cell, self.order, self.start, self.grid.neighbours, self.grid.shifts
 
-    def _accelerations(self, vel_seen):
+    def _accelerations(self, vel_seen, rho=None):
+        """Accelerations seen with ``vel_seen``; ``rho``: the summation density at the current
+        positions if already computed."""
         g, p, walls = self.grid, self.params, ~self.fluid
-        self.rho = density(self.pos, self.mass, self.h, *self._lists(), g.inner)
+        self.rho = density(self.pos, self.mass, self.h, *self._lists(), g.inner) if rho is None else rho
         self.pressure = pressure(self.rho, self.rho0, p.c0, p.p0)
-        # walls take the fluid's pressure, extrapolated with its hydrostatic head (decisions #33),
-        # and the density that pressure implies
-        self.pressure = wall_pressure(self.pos, self.pressure, self.rho, self.fluid, self.gravity, self.h,
-                                      *self._lists(), g.inner)
+        # walls take the fluid's velocity mirrored (Eq. 25) and its pressure extrapolated with the
+        # hydrostatic head (decisions #33), and the density that pressure implies
+        vel_seen, self.pressure = wall_state(self.pos, vel_seen, self.pressure, self.rho, self.fluid, self.gravity,
+                                             self.h, *self._lists(), g.inner)
         self.rho[walls] = density_from_pressure(self.pressure[walls], self.rho0[walls], p.c0, p.p0)
-        vel_seen = wall_velocity(self.pos, vel_seen, self.fluid, self.h, *self._lists(), g.inner)
         return accelerations(self.pos, vel_seen, self.mass, self.rho, self.pressure, self.mu, self.fluid, p.s_ff,
                              p.s_sf, self.h, self.gravity, *self._lists())
 
@@ -137,7 +139,7 @@ class Simulation:
         if bounced:
             self._wrap()
             self._bin()
-        self.acc = self._accelerations(v_bar)
+        self.acc = self._accelerations(v_bar, None if bounced else rho)
         self.vel = v_half
         self.vel[f] += 0.5 * dt * self.acc[f]
         if self.params.damping:
@@ -175,5 +177,5 @@ class Simulation:
         """max |rho - rho0| / rho0 over fluid particles whose kernel is full (number density at
         least 0.98 of the bulk lattice value, so no free surface within h; walls complete it):
         the weak-compressibility check of digest §7 #5."""
-        full = self.fluid & (self.number_density * self.params.dx**3 >= FULL_KERNEL * lattice_sum(self.h, self.params.dx))
+        full = self.fluid & (self.number_density >= FULL_KERNEL * self.bulk_number_density)
         return float(np.max(np.abs(self.rho[full] / self.rho0[full] - 1.0), initial=0.0))

@@ -1,5 +1,5 @@
-"""Wall particles of PF-SPH (seed 000 §2.9): the velocity the fluid sees in them (Eq. 25) and the
-bounce-back of fluid particles that penetrate a wall (proximity ratio, Eqs. 18-24).
+"""Wall particles of PF-SPH (seed 000 §2.9): the velocity and pressure the fluid sees in them
+(Eq. 25, decisions #33) and the bounce-back of fluid particles that penetrate a wall (proximity ratio, Eqs. 18-24).
 
 Walls are three layers of fixed particles on the fluid's dx lattice, at 0.5, 1.5 and 2.5 dx
 behind the nominal surface (digest §2.9a).
@@ -12,24 +12,31 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from .cells import separation
 from .kernel import wendland, wendland_gradient_over_r
 
 BOUNCE_BACK_BETA = 1.0  # seed 000 Eq. 24 ("affords the best results")
 
 
 @njit(parallel=True, cache=True)
-def wall_velocity(pos, vel, fluid, h, cell, order, start, neighbours, shifts, inner):
-    """vel with every wall particle's entry replaced by -sum_j v_j W_ij / sum_j W_ij over its
-    fluid neighbours (seed 000 Eq. 25, Adami et al. 2012 with a wall at rest), 0 without any:
-    the viscous term then imposes no slip (digest §2.9b)."""
+def wall_state(pos, vel, pressure, rho, fluid, gravity, h, cell, order, start, neighbours, shifts, inner):
+    """What the fluid sees in the wall particles, from their fluid neighbours f (0 without any):
+
+    - velocity -sum_f v_f W / sum_f W (seed 000 Eq. 25, Adami et al. 2012 with the wall at rest),
+      so the viscous term imposes no slip (digest §2.9b);
+    - pressure (sum_f P_f W + g . sum_f rho_f (r_w - r_f) W) / sum_f W, the same paper's
+      extrapolation with the hydrostatic head (seed 000 gives walls no pressure rule, digest
+      §2.9a; decisions #33).
+
+    Returns copies of ``vel`` and ``pressure`` with the wall entries replaced."""
     n = pos.shape[0]
-    out = vel.copy()
+    vel_out, p_out = vel.copy(), pressure.copy()
     h2 = h * h
     for i in prange(n):
         if fluid[i]:
             continue
         c = cell[i]
-        wsum, vx, vy, vz = 0.0, 0.0, 0.0, 0.0
+        wsum, vx, vy, vz, psum, head = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
         for k in range(inner):
             nc = neighbours[c, k]
             if nc < 0:
@@ -38,21 +45,22 @@ def wall_velocity(pos, vel, fluid, h, cell, order, start, neighbours, shifts, in
                 j = order[idx]
                 if not fluid[j]:
                     continue
-                dx = pos[i, 0] - pos[j, 0] - shifts[c, k, 0]
-                dy = pos[i, 1] - pos[j, 1] - shifts[c, k, 1]
-                dz = pos[i, 2] - pos[j, 2] - shifts[c, k, 2]
-                r2 = dx * dx + dy * dy + dz * dz
+                dx, dy, dz, r2 = separation(pos, i, j, shifts[c, k])
                 if r2 < h2:
                     w = wendland(math.sqrt(r2), h)
                     wsum += w
                     vx += w * vel[j, 0]
                     vy += w * vel[j, 1]
                     vz += w * vel[j, 2]
+                    psum += pressure[j] * w
+                    head += rho[j] * (gravity[0] * dx + gravity[1] * dy + gravity[2] * dz) * w
         if wsum > 0.0:
-            out[i, 0], out[i, 1], out[i, 2] = -vx / wsum, -vy / wsum, -vz / wsum
+            vel_out[i, 0], vel_out[i, 1], vel_out[i, 2] = -vx / wsum, -vy / wsum, -vz / wsum
+            p_out[i] = (psum + head) / wsum
         else:
-            out[i, 0], out[i, 1], out[i, 2] = 0.0, 0.0, 0.0
-    return out
+            vel_out[i, 0], vel_out[i, 1], vel_out[i, 2] = 0.0, 0.0, 0.0
+            p_out[i] = 0.0
+    return vel_out, p_out
 
 
 @njit(parallel=True, cache=True)
@@ -77,10 +85,7 @@ def proximity(pos, mass, rho, fluid, h, cell, order, start, neighbours, shifts, 
                 continue
             for idx in range(start[nc], start[nc + 1]):
                 j = order[idx]
-                dx = pos[i, 0] - pos[j, 0] - shifts[c, k, 0]
-                dy = pos[i, 1] - pos[j, 1] - shifts[c, k, 1]
-                dz = pos[i, 2] - pos[j, 2] - shifts[c, k, 2]
-                r2 = dx * dx + dy * dy + dz * dz
+                dx, dy, dz, r2 = separation(pos, i, j, shifts[c, k])
                 if r2 >= h2:
                     continue
                 r = math.sqrt(r2)
@@ -113,37 +118,3 @@ def bounce_back(pos, vel_list, phi, normal, fluid, dx):
             v[inside] = 0.0
     return int(inside.sum())
 
-
-@njit(parallel=True, cache=True)
-def wall_pressure(pos, pressure, rho, fluid, gravity, h, cell, order, start, neighbours, shifts, inner):
-    """pressure with every wall particle's entry replaced by the extrapolation of the fluid's,
-    P_w = (sum_f P_f W_wf + g . sum_f rho_f (r_w - r_f) W_wf) / sum_f W_wf (Adami et al. 2012 for
-    a wall at rest; 0 without fluid neighbours). Seed 000 gives walls no pressure rule (digest
-    §2.9a); its Eq. 25 takes the velocity from the same paper (decisions #33)."""
-    n = pos.shape[0]
-    out = pressure.copy()
-    h2 = h * h
-    for i in prange(n):
-        if fluid[i]:
-            continue
-        c = cell[i]
-        wsum, psum, head = 0.0, 0.0, 0.0
-        for k in range(inner):
-            nc = neighbours[c, k]
-            if nc < 0:
-                continue
-            for idx in range(start[nc], start[nc + 1]):
-                j = order[idx]
-                if not fluid[j]:
-                    continue
-                dx = pos[i, 0] - pos[j, 0] - shifts[c, k, 0]
-                dy = pos[i, 1] - pos[j, 1] - shifts[c, k, 1]
-                dz = pos[i, 2] - pos[j, 2] - shifts[c, k, 2]
-                r2 = dx * dx + dy * dy + dz * dz
-                if r2 < h2:
-                    w = wendland(math.sqrt(r2), h)
-                    wsum += w
-                    psum += pressure[j] * w
-                    head += rho[j] * (gravity[0] * dx + gravity[1] * dy + gravity[2] * dz) * w
-        out[i] = (psum + head) / wsum if wsum > 0.0 else 0.0
-    return out

@@ -177,13 +177,14 @@ def test_proximity_ratio_and_normal_at_a_flat_wall():
 def test_wall_particles_mirror_the_fluid_velocity():
     # seed 000 Eq. 25 with a wall at rest: a uniform fluid velocity U gives every wall particle
     # within reach of the fluid -U, so the Morris term sees 2U across the wall (no slip)
-    from sph_bridge.walls import wall_velocity
+    from sph_bridge.walls import wall_state
 
     dx = 1e-3
     pos, is_fluid, grid = flat_wall_scene(dx)
     vel = np.where(is_fluid[:, None], np.array([0.3, -0.1, 0.0]), 0.0)
     cell, order, start = grid.bin(pos)
-    seen = wall_velocity(pos, vel, is_fluid, support(dx), cell, order, start, grid.neighbours, grid.shifts, grid.inner)
+    seen, _ = wall_state(pos, vel, np.zeros(len(pos)), np.full(len(pos), 1000.0), is_fluid, np.zeros(3), support(dx),
+                         cell, order, start, grid.neighbours, grid.shifts, grid.inner)
     assert np.allclose(seen[~is_fluid], [-0.3, 0.1, 0.0], rtol=1e-12)
     assert np.array_equal(seen[is_fluid], vel[is_fluid])
 

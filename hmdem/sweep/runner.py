@@ -29,13 +29,14 @@ def cli_arguments(point: SweepPoint, out: Path, packing: str | None = None) -> l
     return args
 
 
-def read_summary(run_dir: Path) -> dict | None:
-    """summary.json of a finished run directory; None if absent, interrupted or stopped by a failed solve."""
+def read_summary(run_dir: Path, finished_only: bool = True) -> dict | None:
+    """summary.json of a run directory; None if absent or (``finished_only``) the run was
+    interrupted or stopped by a failed solve."""
     path = Path(run_dir) / "summary.json"
     if not path.is_file():
         return None
     summary = json.loads(path.read_text())
-    return None if summary.get("status") in INCOMPLETE else summary
+    return None if finished_only and summary.get("status") in INCOMPLETE else summary
 
 
 def run_point(point: SweepPoint, out: Path, packing: str | None = None, recorded_as: list[str] | None = None) -> dict:
@@ -55,9 +56,8 @@ def run_point(point: SweepPoint, out: Path, packing: str | None = None, recorded
     argv = cli_arguments(point, out, packing)
     with redirect_stdout(io.StringIO()):  # the run's two result lines; the sweep reports instead
         code = run_linear(build_parser().parse_args(argv), recorded_as or argv)
-    summary = read_summary(out)
-    if code != 0 or summary is None:
-        written = out / "summary.json"
-        reason = json.loads(written.read_text()).get("status_message") if written.is_file() else ""
+    summary = read_summary(out, finished_only=False)
+    if code != 0 or summary is None or summary.get("status") in INCOMPLETE:
+        reason = (summary or {}).get("status_message")
         raise RuntimeError(f"run {point.run_id} ended with exit status {code}" + (f": {reason}" if reason else ""))
     return summary

@@ -12,6 +12,7 @@ import tomllib
 from pathlib import Path
 
 from ..rundir import write_text_atomic
+from .runner import INCOMPLETE
 
 COLUMNS = ["run", "log_m", "log_ca_star", "viscosity_ratio", "ca_star", "ca", "seed", "status", "regime",
            "fractal_dimension", "breakthrough_time_s", "breakthrough_saturation", "peak_injection_pressure_pa",
@@ -20,7 +21,7 @@ COLUMNS = ["run", "log_m", "log_ca_star", "viscosity_ratio", "ca_star", "ca", "s
 # columns that differ between two executions of the same runs
 TIMING_COLUMNS = ("wall_time_s",)
 # statuses of rows that carry no result: no run, a run stopped by a failed solve, or by Ctrl-C
-NO_RESULT = ("failed", "diverged", "interrupted")
+NO_RESULT = ("failed", *INCOMPLETE)
 
 
 def run_directories(root: Path) -> list[Path]:
