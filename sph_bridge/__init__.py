@@ -1,9 +1,9 @@
 """sph_bridge: companion package for flow in fractures (PF-SPH, Richards coupling, FHP lattice gas).
 
-Issue 5 (PF-SPH, seed 000) is in progress: the kernel, cell lists, particle sums (density,
-pressure, viscous and pairwise forces), wall treatment and the Verlet time loop exist and are
-tested (tests/test_sph_pfsph.py). ``python -m sph_bridge {hydrostatic,poiseuille}`` runs the two
-validation cases between walls (a closed hydrostatic column and body-force Poiseuille flow) into
-run directories. The free-surface column, the sessile droplet and the calibration routine (and
-their commands) do not exist yet. Issue 6 (lattice gas) is not started.
+PF-SPH (issue 5, seed 000): the kernel, cell lists, particle sums (density, pressure, viscous and
+pairwise forces), wall treatment and the Verlet time loop; surface tension measured on a free
+slab (``tension``), sessile drops and their Young-Laplace reference shapes (``droplet``,
+``young_laplace``), the calibration of the pairwise strengths (``calibrate``, stored results in
+``calibrations``). ``python -m sph_bridge {droplet,poiseuille,hydrostatic,calibrate}`` runs them
+into run directories. Issue 6 (lattice gas) is not started.
 """

@@ -1,17 +1,27 @@
-"""``python -m sph_bridge {hydrostatic,poiseuille}``: PF-SPH validation cases with run directories.
+"""``python -m sph_bridge {droplet,poiseuille,hydrostatic,calibrate}``: PF-SPH validation cases
+with run directories.
 
+    python -m sph_bridge droplet     [--dx M] [--theta DEG] [--volume M3] [--gravity G] [--ridge] [--out DIR]
+    python -m sph_bridge calibrate   [--dx M] [--theta DEG] [--surface-tension N/M] [--out DIR]
     python -m sph_bridge hydrostatic [--dx M] [--layers N] [--gravity G] [--out DIR]
     python -m sph_bridge poiseuille  [--dx M] [--layers N] [--gravity G] [--viscosity MU] [--out DIR]
 
-Both put water between two 3-layer walls, periodic sideways (``sph_bridge.cases``). A run
-directory holds config.toml, summary.json (measured against theory, particles, steps, wall
-time), timeseries.csv, profile.png (the measured profile over the analytical one) and
-particles.vtu (ParaView point cloud). Bad input: one line, exit status 2, nothing written.
-Ctrl-C stops the run and writes the directory with status "interrupted".
+``hydrostatic`` and ``poiseuille`` put water between two 3-layer walls, periodic sideways
+(``sph_bridge.cases``); ``droplet`` relaxes a sessile drop (or a ridge) on a wall and measures
+its height, width and contact angle against the spherical cap, de Gennes' puddle height and
+the Young-Laplace shape (``sph_bridge.droplet``); ``calibrate`` finds s_ff and s_sf for a
+surface tension and a contact angle (``sph_bridge.calibrate``). A run directory holds
+config.toml, summary.json (measured against theory, particles, steps, wall time),
+timeseries.csv, PNG figures and ParaView point clouds (.vtu; a droplet's series in
+particles.pvd). Bad input: one line, exit status 2, nothing written. Ctrl-C stops the run and
+writes the directory with status "interrupted".
 """
 
 from __future__ import annotations
 
+import argparse
+import json
+import math
 import sys
 import time
 from dataclasses import asdict
@@ -19,22 +29,69 @@ from pathlib import Path
 
 import numpy as np
 
-from hmdem.cli import OneLineParser, dispatch, int_at_least, new_run_directory, positive_number
+from hmdem.cli import InputError, OneLineParser, dispatch, int_at_least, new_run_directory, positive_number
 from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_toml
 
-from . import cases
+from . import calibrations, cases, droplet
+from .output import particle_state, write_collection, write_particles
 
 PROG = "python -m sph_bridge"
 MIN_LAYERS = 8  # the channel must hold a full kernel (h = 3.42 dx) from each wall
+DEFAULT_DX = 5e-4  # m: the coarsest resolution of seed 000 Table 1 (CI runs the droplet here)
+DEFAULT_THETA = 65.16  # degrees: PMMA, the lab value of seed 000 §4.1
+DEFAULT_VOLUME = 2.5e-7  # m^3: ~2,000 particles at dx = 5e-4 m
+MIN_DROP_CELLS = 400  # a drop needs a few kernel supports across to have a surface and a bulk
+SNAPSHOT_EVERY = 4  # samples between the droplet's ParaView frames
 
 
 class _Parser(OneLineParser):
     command = PROG
 
 
+def angle(text: str) -> float:
+    value = positive_number(text)
+    if not value < 180.0:
+        raise argparse.ArgumentTypeError(f"must be a contact angle in (0, 180) degrees, got {text!r}")
+    return value
+
+
+def non_negative(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number >= 0, got {text!r}") from None
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0 and finite, got {text!r}")
+    return value
+
+
 def build_parser() -> OneLineParser:
     parser = _Parser(prog=PROG, description="PF-SPH validation cases (seed 000)")
     sub = parser.add_subparsers(dest="command", parser_class=_Parser)
+    text = "sessile drop (or --ridge) relaxed on a wall: height, width and contact angle against theory"
+    p = sub.add_parser("droplet", help=text, description=text)
+    p.add_argument("--dx", type=positive_number, default=DEFAULT_DX, help=f"particle spacing [m] (default {DEFAULT_DX})")
+    p.add_argument("--theta", type=angle,
+                   help=f"target static contact angle [deg] selecting the calibration (default {DEFAULT_THETA}, "
+                        "or the --calibration run's)")
+    p.add_argument("--volume", type=positive_number, default=DEFAULT_VOLUME,
+                   help=f"fluid volume [m^3] (a ridge: over its periodic length; default {DEFAULT_VOLUME})")
+    p.add_argument("--gravity", type=non_negative, default=cases.GRAVITY,
+                   help=f"downward gravity [m/s^2] (default {cases.GRAVITY}; 0: a spherical cap at any size)")
+    p.add_argument("--ridge", action="store_true",
+                   help=f"a 2-D drop, periodic over {droplet.RIDGE_LENGTH} dx along y (de Gennes' puddle limit)")
+    p.add_argument("--calibration", type=Path, help="a calibrate run directory whose s_ff, s_sf, c0, rho0 to use")
+    p.add_argument("--s-ff", type=positive_number, help="fluid-fluid pairwise strength [N] (with --s-sf, "
+                   "instead of a calibration)")
+    p.add_argument("--s-sf", type=non_negative, help="solid-fluid pairwise strength [N]")
+    p.add_argument("--c0", type=positive_number, help="speed of sound [m/s] (default: seed 000 Table 1)")
+    text = "find s_ff for a surface tension (free slab) and s_sf for a contact angle (zero-gravity drop)"
+    p = sub.add_parser("calibrate", help=text, description=text)
+    p.add_argument("--dx", type=positive_number, default=DEFAULT_DX, help=f"particle spacing [m] (default {DEFAULT_DX})")
+    p.add_argument("--theta", type=angle, default=DEFAULT_THETA, help=f"target contact angle [deg] (default {DEFAULT_THETA})")
+    p.add_argument("--surface-tension", type=positive_number, default=droplet.SURFACE_TENSION,
+                   help=f"target surface tension [N/m] (default {droplet.SURFACE_TENSION})")
+    p.add_argument("--c0", type=positive_number, help="speed of sound [m/s] (default: seed 000 Table 1)")
     for name, text in (("hydrostatic", "water at rest between two walls under gravity: dP/dz = rho g"),
                        ("poiseuille", "body-force flow between two walls: the parabolic profile")):
         p = sub.add_parser(name, help=text, description=text)
@@ -47,9 +104,26 @@ def build_parser() -> OneLineParser:
         if name == "poiseuille":
             p.add_argument("--viscosity", type=positive_number, default=2.6,
                            help="dynamic viscosity [Pa s] (default 2.6: the flow settles in ~0.05 s)")
+    for p in sub.choices.values():
         p.add_argument("--out", type=Path, help="run directory (must not exist; default runs/<case>-<time>)")
         p.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
+
+
+def progress_bar(args, total: float, unit: str = "s"):
+    """A tqdm bar over simulated time (None with --quiet) and the callback that advances it."""
+    if args.quiet:
+        return None, None
+    from tqdm import tqdm
+
+    bar = tqdm(total=total, desc=args.command, unit=unit,
+               bar_format="{l_bar}{bar}| {n:.4f}/{total:.4f} " + unit + " [{elapsed}<{remaining}]")
+    return bar, (lambda sim: bar.update(sim.t - bar.n))
+
+
+def config_of(args, sim, **sections) -> dict:
+    return {"run": {"command": f"{PROG} " + " ".join(args.argv), "case": args.command}, **sections,
+            "parameters": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(sim.params).items()}}
 
 
 def run_case(args) -> int:
@@ -60,64 +134,290 @@ def run_case(args) -> int:
     else:
         params, t_end = cases.poiseuille_parameters(args.dx, args.layers, args.gravity, args.viscosity)
     sim = cases.channel(args.dx, args.layers, params)
-    bar = None
-    if not args.quiet:
-        from tqdm import tqdm
-
-        bar = tqdm(total=t_end, desc=args.command, unit="s", bar_format="{l_bar}{bar}| {n:.4f}/{total:.4f} s [{elapsed}<{remaining}]")
+    bar, advance = progress_bar(args, t_end)
     status = "finished"
     try:
-        sim.run(t_end, record_every=t_end / 200, progress=None if bar is None else lambda s: bar.update(s.t - bar.n))
-    except KeyboardInterrupt:
+        sim.run(t_end, record_every=t_end / 200, progress=advance)
+    except (KeyboardInterrupt, SystemError) as exc:
+        if not interrupted(exc):
+            raise
         status = "interrupted"
     if bar is not None:
         bar.close()
     measure = cases.measure_hydrostatic if args.command == "hydrostatic" else cases.measure_poiseuille
     result = measure(sim, height, args.gravity)
-    summary = {"case": args.command, "status": status, **result.summary, "particles": len(sim.pos),
-               "fluid_particles": int(sim.fluid.sum()), "steps": sim.record.steps, "simulated_time_s": sim.t,
-               "wall_time_s": time.perf_counter() - sim.wall_start}
-    write_run(out, args, sim, summary, result.profile)
-    print(f"{args.command}: {status} after {sim.record.steps} steps; "
-          + ", ".join(f"{k} = {v:.4g}" for k, v in result.summary.items() if isinstance(v, float)))
-    print(f"run directory: {out}")
-    return 130 if status == "interrupted" else 0
-
-
-def write_run(out: Path, args, sim, summary: dict, profile) -> None:
-    import meshio
-
-    from hmdem.plots import plt
-
-    config = {"run": {"command": f"{PROG} " + " ".join(args.argv), "case": args.command},
-              "geometry": {"dx_m": args.dx, "layers": args.layers, "side_cells": cases.SIDE_CELLS},
-              "parameters": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(sim.params).items()}}
+    summary = {"case": args.command, "status": status, **result.summary, **run_figures(sim)}
+    config = config_of(args, sim, geometry={"dx_m": args.dx, "layers": args.layers, "side_cells": cases.SIDE_CELLS})
     with atomic_run_directory(out) as tmp:
         write_toml(tmp / "config.toml", config)
         write_json(tmp / "summary.json", summary)
         write_rows(tmp / "timeseries.csv", sim.record.columns, sim.record.rows)
-        points = sim.pos
-        cells = [("vertex", np.arange(len(points)).reshape(-1, 1))]
-        meshio.write(tmp / "particles.vtu", meshio.Mesh(points, cells, point_data={
-            "velocity": sim.vel, "pressure": sim.pressure, "density": sim.rho, "fluid": sim.fluid.astype(np.int8)}))
-        z, measured, zt, theory, label = profile
-        fig, ax = plt.subplots(figsize=(5, 4))
-        ax.plot(measured, z * 1e3, ".", ms=2, alpha=0.4, label="particles")
-        ax.plot(theory, zt * 1e3, "k-", label="theory")
-        ax.set_xlabel(label)
-        ax.set_ylabel("z [mm]")
-        ax.legend()
-        ax.set_title(f"{args.command}: {summary['steps']} steps, {summary['fluid_particles']} fluid particles")
-        fig.tight_layout()
-        fig.savefig(tmp / "profile.png", dpi=120)
-        plt.close(fig)
+        write_particles(tmp / "particles.vtu", particle_state(sim))
+        profile_figure(tmp / "profile.png", result.profile, f"{args.command}: {summary['steps']} steps, "
+                       f"{summary['fluid_particles']} fluid particles")
+    print(f"{args.command}: {status} after {sim.record.steps} steps; "
+          + ", ".join(f"{k} = {v:.4g}" for k, v in result.summary.items() if isinstance(v, float)))
+    print(f"run directory: {out}")
+    return exit_status(status)
+
+
+def interrupted(exc: BaseException) -> bool:
+    """A KeyboardInterrupt, or an error whose cause chain holds one (a Ctrl-C landing inside a
+    numba call comes out as SystemError)."""
+    while exc is not None:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
+def exit_status(status: str) -> int:
+    return {"finished": 0, "interrupted": 130}.get(status, 1)
+
+
+def run_figures(sim) -> dict:
+    return {"particles": len(sim.pos), "fluid_particles": int(sim.fluid.sum()), "steps": sim.record.steps,
+            "simulated_time_s": sim.t, "wall_time_s": time.perf_counter() - sim.wall_start}
+
+
+def profile_figure(path: Path, profile, title: str) -> None:
+    from hmdem.plots import plt
+
+    z, measured, zt, theory, label = profile
+    fig, ax = plt.subplots(figsize=(5, 4))
+    ax.plot(measured, z * 1e3, ".", ms=2, alpha=0.4, label="particles")
+    ax.plot(theory, zt * 1e3, "k-", label="theory")
+    ax.set_xlabel(label)
+    ax.set_ylabel("z [mm]")
+    ax.legend()
+    ax.set_title(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def droplet_parameters(args):
+    """(SphParameters, surface tension, where they came from): explicit strengths, a calibrate run
+    directory or the package's calibration table (:mod:`sph_bridge.calibrations`). Sets
+    ``args.theta`` (the target angle) where it was not given."""
+    from .calibrate import sound_speed
+    from .simulation import SphParameters
+
+    gravity = (0.0, 0.0, -args.gravity)
+    sigma = droplet.SURFACE_TENSION
+    if (args.s_ff is None) != (args.s_sf is None):
+        raise InputError("--s-ff and --s-sf: give both strengths or neither")
+    if args.s_ff is not None:
+        args.theta = args.theta or DEFAULT_THETA
+        c0 = args.c0 or sound_speed(args.dx)
+        return SphParameters(dx=args.dx, c0=c0, s_ff=args.s_ff, s_sf=args.s_sf, gravity=gravity), sigma, "command line"
+    if args.c0 is not None:
+        raise InputError("--c0: a calibration fixes c0 (surface tension and angle depend on it); give it with "
+                         "--s-ff/--s-sf or calibrate at that c0")
+    if args.calibration is not None:
+        keys = ("dx_m", "c0_m_per_s", "rho0_fluid", "s_ff_n", "s_sf_n", "surface_tension_n_per_m",
+                "target_contact_angle_deg")
+        try:
+            cal = json.loads((args.calibration / "summary.json").read_text())
+            values = {k: float(cal[k]) for k in keys}
+            if cal.get("status") != "finished" or not all(map(math.isfinite, values.values())):
+                raise ValueError(cal.get("status"))
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise InputError(f"--calibration: {str(args.calibration)!r} is not a finished calibrate run "
+                             f"directory ({exc.__class__.__name__}: {exc})") from None
+        if abs(values["dx_m"] / args.dx - 1.0) > 1e-3:
+            raise InputError(f"--calibration: calibrated at dx = {values['dx_m']:g} m, not --dx {args.dx:g}")
+        if args.theta is not None and abs(args.theta - values["target_contact_angle_deg"]) > 1e-2:
+            raise InputError(f"--theta: the calibration targets {values['target_contact_angle_deg']:g}°")
+        args.theta = values["target_contact_angle_deg"]
+        params = SphParameters(dx=args.dx, c0=values["c0_m_per_s"], rho0_fluid=values["rho0_fluid"],
+                               s_ff=values["s_ff_n"], s_sf=values["s_sf_n"], gravity=gravity)
+        return params, values["surface_tension_n_per_m"], str(args.calibration)
+    args.theta = args.theta or DEFAULT_THETA
+    entry = calibrations.lookup(args.dx, args.theta)
+    if entry is None:
+        raise InputError(f"--theta: no calibration for dx = {args.dx:g} m and theta = {args.theta:g}°; run "
+                         f"'{PROG} calibrate --dx {args.dx:g} --theta {args.theta:g}' and pass its run directory "
+                         "with --calibration")
+    params = SphParameters(dx=args.dx, c0=entry.c0, rho0_fluid=entry.rho0_fluid, s_ff=entry.s_ff, s_sf=entry.s_sf,
+                           gravity=gravity)
+    return params, entry.surface_tension, entry.command
+
+
+def run_droplet(args) -> int:
+    if args.volume / args.dx**3 < MIN_DROP_CELLS:
+        raise InputError(f"--volume: {args.volume:g} m^3 is {args.volume / args.dx**3:.0f} particles at dx = "
+                         f"{args.dx:g} m; at least {MIN_DROP_CELLS} are needed")
+    params, sigma, source = droplet_parameters(args)
+    out = new_run_directory(args.out, args.command)
+    sim, t_min = droplet.prepare_drop(params, args.volume, sigma, args.ridge)
+    bar, advance = progress_bar(args, t_min)
+    frames, rows, status, settled = [], [], "finished", False
+
+    def snapshot(s, k):
+        if k % SNAPSHOT_EVERY == 0 or k == 1:
+            frames.append((s.t, particle_state(s)))
+
+    try:
+        shape, settled = droplet.relax(sim, t_min, args.ridge, progress=advance, on_sample=snapshot, rows=rows)
+    except (KeyboardInterrupt, SystemError) as exc:
+        if not interrupted(exc):
+            raise
+        status = "interrupted"
+        shape = droplet.measure(sim, args.ridge)
+    if bar is not None:
+        bar.close()
+    summary = droplet_summary(args, sim, shape, sigma, source, status)
+    summary["settled"] = settled
+    config = config_of(args, sim, geometry={"dx_m": args.dx, "volume_m3": args.volume, "ridge": args.ridge,
+                                            "ridge_length_m": droplet.RIDGE_LENGTH * args.dx if args.ridge else 0.0},
+                       calibration={"source": source})
+    with atomic_run_directory(out) as tmp:
+        write_toml(tmp / "config.toml", config)
+        write_json(tmp / "summary.json", summary)
+        write_rows(tmp / "timeseries.csv", ("t", "kinetic_energy_j", "height_m", "width_m", "contact_angle_deg"), rows)
+        write_frames(tmp, sim, frames)
+        side_view(tmp / "side_view.png", sim, shape, summary, args.ridge)
+    print(f"droplet: {status} after {sim.record.steps} steps; height {shape.height * 1e3:.3f} mm, width "
+          f"{shape.width * 1e3:.3f} mm, h/w {summary['aspect']:.4f}, contact angle "
+          f"{shape.contact_angle_deg:.1f}° (target {args.theta:g}°)")
+    print(f"run directory: {out}")
+    return exit_status(status)
+
+
+def droplet_summary(args, sim, shape, sigma, source, status) -> dict:
+    """Measured shape against the spherical cap, de Gennes' puddle and the Young-Laplace drop of
+    the same volume (at the target angle, the calibration's surface tension and the fluid's
+    bulk density)."""
+    from .simulation import FULL_KERNEL
+    from .young_laplace import sessile_height
+
+    f = sim.fluid
+    full = f & (sim.number_density >= FULL_KERNEL * sim.bulk_number_density)
+    rho = float(sim.rho[full].mean()) if full.any() else float(sim.params.rho0_fluid)
+    g = args.gravity
+    lam = droplet.capillary_length(sigma, rho, g) if g > 0 else math.inf
+    volume = float(sim.mass[f].sum()) / rho
+    if args.ridge:
+        volume /= droplet.RIDGE_LENGTH * args.dx
+    try:
+        yl_height, yl_width = sessile_height(volume, args.theta, lam, axisymmetric=not args.ridge)
+    except ValueError:
+        yl_height = yl_width = math.nan
+    aspect = shape.height / shape.width if shape.width > 0 else math.nan
+    summary = {"case": "droplet", "status": status, "geometry": "ridge" if args.ridge else "drop",
+               "calibration": source, "s_ff_n": sim.params.s_ff, "s_sf_n": sim.params.s_sf,
+               "c0_m_per_s": sim.params.c0, "rho0_fluid": sim.params.rho0_fluid, "surface_tension_n_per_m": sigma,
+               "height_m": shape.height, "width_m": shape.width, "aspect": aspect,
+               "contact_angle_deg": shape.contact_angle_deg, "target_contact_angle_deg": args.theta,
+               "contact_angle_error_deg": shape.contact_angle_deg - args.theta,
+               "fitted_contact_angle_deg": shape.fitted_angle_deg, "cap_fit_rms_m": shape.fit_rms,
+               "cap_aspect": droplet.cap_aspect(args.theta), "bulk_density_kg_per_m3": rho,
+               "fluid_volume_m3": volume * (droplet.RIDGE_LENGTH * args.dx if args.ridge else 1.0),
+               "young_laplace_height_m": yl_height, "young_laplace_width_m": yl_width,
+               "height_error": shape.height / yl_height - 1.0}
+    if g > 0:
+        puddle = droplet.puddle_height(sigma, rho, g, args.theta)
+        summary.update({"capillary_length_m": lam, "puddle_height_m": puddle,
+                        "puddle_height_error": shape.height / puddle - 1.0,
+                        "bond_number": rho * g * (shape.width / 2) ** 2 / sigma})
+    summary["final_kinetic_energy_j"] = sim.state_row()[2]
+    summary.update(run_figures(sim))
+    return summary
+
+
+def write_frames(tmp: Path, sim, frames) -> None:
+    """particles_NNNN.vtu per frame and particles.pvd listing them; the final state as particles.vtu."""
+    names = []
+    for k, (t, state) in enumerate(frames):
+        names.append((t, f"particles_{k:04d}.vtu"))
+        write_particles(tmp / names[-1][1], state)
+    write_collection(tmp / "particles.pvd", names)
+    write_particles(tmp / "particles.vtu", particle_state(sim))
+
+
+def side_view(path: Path, sim, shape, summary: dict, ridge: bool) -> None:
+    """Fluid particles seen from the side (x-z) with the fitted cap and the theoretical heights."""
+    from hmdem.plots import plt
+
+    f = sim.fluid
+    pos, walls = sim.pos[f], sim.pos[~f]
+    centre = pos[:, :2].mean(axis=0)
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    ax.plot((walls[:, 0] - centre[0]) * 1e3, walls[:, 2] * 1e3, ".", color="0.75", ms=2)
+    ax.plot((pos[:, 0] - centre[0]) * 1e3, pos[:, 2] * 1e3, ".", color="tab:blue", ms=3, alpha=0.3)
+    if math.isfinite(shape.cap_radius):
+        phi = np.linspace(0, 2 * math.pi, 400)
+        x, z = shape.cap_radius * np.cos(phi), shape.cap_centre_z + shape.cap_radius * np.sin(phi)
+        keep = z >= 0
+        ax.plot(x[keep] * 1e3, z[keep] * 1e3, "k-", lw=1, label=f"fitted sphere: {shape.fitted_angle_deg:.1f}°")
+    ax.axhline(summary["young_laplace_height_m"] * 1e3, color="tab:green", ls="--", lw=1,
+               label=f"Young-Laplace at {summary['target_contact_angle_deg']:g}°")
+    if "puddle_height_m" in summary:
+        ax.axhline(summary["puddle_height_m"] * 1e3, color="tab:red", ls=":", lw=1, label="2 λc sin(θ/2)")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("z [mm]")
+    ax.legend(fontsize=7, loc="upper right")
+    ax.set_title(f"{summary['geometry']}: h = {shape.height * 1e3:.3f} mm, w = {shape.width * 1e3:.3f} mm, "
+                 f"cap angle {shape.contact_angle_deg:.1f}°, {summary['fluid_particles']} particles", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def run_calibrate(args) -> int:
+    from .calibrate import Calibration, calibrate, sound_speed
+
+    out = new_run_directory(args.out, args.command)
+    cal = Calibration(dx=args.dx, c0=args.c0 or sound_speed(args.dx))
+    start = time.perf_counter()
+
+    def report(trial):
+        if not args.quiet:
+            what = "sigma = %.4f N/m, bulk %.1f kg/m^3" % (trial.measured, trial.bulk_density) \
+                if trial.stage == "tension" else "theta = %.2f°" % trial.measured
+            print(f"  {trial.stage}: s_ff = {trial.s_ff:.4g} N, s_sf = {trial.s_sf:.4g} N, rho0 = "
+                  f"{trial.rho0_fluid:.1f}: {what} ({trial.steps} steps, {time.perf_counter() - start:.0f} s)",
+                  flush=True)
+
+    status, error = "finished", ""
+    try:
+        calibrate(args.dx, args.theta, args.surface_tension, report=report, cal=cal)
+    except (KeyboardInterrupt, SystemError) as exc:
+        if not interrupted(exc):
+            raise
+        status = "interrupted"
+    except RuntimeError as exc:
+        status, error = "not_converged", str(exc)
+    summary = {"case": "calibrate", "status": status, "dx_m": args.dx, "c0_m_per_s": cal.c0,
+               "rho0_fluid": cal.rho0_fluid, "s_ff_n": cal.s_ff, "s_sf_n": cal.s_sf,
+               "surface_tension_n_per_m": cal.surface_tension, "target_surface_tension_n_per_m": args.surface_tension,
+               "bulk_density_kg_per_m3": cal.bulk_density, "contact_angle_deg": cal.contact_angle_deg,
+               "target_contact_angle_deg": args.theta, "trials": len(cal.trials),
+               "steps": sum(t.steps for t in cal.trials), "wall_time_s": time.perf_counter() - start}
+    if error:
+        summary["error"] = error
+    config = {"run": {"command": f"{PROG} " + " ".join(args.argv), "case": "calibrate"},
+              "targets": {"dx_m": args.dx, "theta_deg": args.theta, "surface_tension_n_per_m": args.surface_tension,
+                          "c0_m_per_s": cal.c0}}
+    with atomic_run_directory(out) as tmp:
+        write_toml(tmp / "config.toml", config)
+        write_json(tmp / "summary.json", summary)
+        columns = ("stage", "s_ff_n", "s_sf_n", "rho0_fluid", "measured", "bulk_density_kg_per_m3", "steps")
+        write_rows(tmp / "timeseries.csv", columns, [tuple(asdict(t).values()) for t in cal.trials])
+    print(f"calibrate: {status}; s_ff = {cal.s_ff:.4g} N, s_sf = {cal.s_sf:.4g} N, rho0 = {cal.rho0_fluid:.1f} kg/m^3 "
+          f"(sigma {cal.surface_tension:.4f} N/m, theta {cal.contact_angle_deg:.2f}°)" + (f": {error}" if error else ""))
+    print(f"run directory: {out}")
+    return exit_status(status)
 
 
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     args.argv = list(sys.argv[1:] if argv is None else argv)  # recorded in config.toml
-    return dispatch(PROG, parser, args, {"hydrostatic": run_case, "poiseuille": run_case})
+    return dispatch(PROG, parser, args, {"hydrostatic": run_case, "poiseuille": run_case, "droplet": run_droplet,
+                                         "calibrate": run_calibrate})
 
 
 if __name__ == "__main__":

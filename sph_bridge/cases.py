@@ -37,12 +37,14 @@ def channel(dx: float, layers: int, params: SphParameters) -> Simulation:
 def hydrostatic_parameters(dx: float, layers: int, gravity: float) -> tuple[SphParameters, float]:
     """c0 with rho g H = 1 % of rho c0^2 (digest §7 #5 asks <= 3 %), and damping of about twice
     the fundamental acoustic mode pi c0 / (2H); relaxed for 3 of its periods (velocities decay as
-    exp(-2 mode t), to e^-38). Returns the
-    parameters and the end time."""
+    exp(-2 mode t), to e^-38). The column is closed: a background pressure P0 of its own head
+    rho g H keeps it in compression up to the top wall, which can only push (decisions #35).
+    Returns the parameters and the end time."""
     height = layers * dx
     c0 = math.sqrt(gravity * height / 0.01)
     mode = math.pi * c0 / (2 * height)
-    params = SphParameters(dx=dx, c0=c0, damping=2.0 * mode, gravity=(0.0, 0.0, -gravity))
+    params = SphParameters(dx=dx, c0=c0, damping=2.0 * mode, gravity=(0.0, 0.0, -gravity),
+                           p0=1000.0 * gravity * height)
     return params, 3 * 2 * math.pi / mode
 
 

@@ -52,6 +52,23 @@ def density_from_pressure(p: np.ndarray, rho0: np.ndarray, c0: float, p0: float 
     return rho0 * np.maximum(1.0 + 7.0 * (p - p0) / (c0 * c0 * rho0), 1e-6) ** (1.0 / 7.0)
 
 
+@njit(inline="always")
+def pair_force_over_r(i, j, r, h, mass, rho, pressure, fluid, s_ff, s_sf):
+    """The conservative part of the force on fluid particle i from j, divided by r_ij [N/m] (a
+    vector along r_i - r_j): the pairwise force of Eq. 27, s [8 f(2r/h) - f(r/h)] / r with s = s_ff
+    between fluid particles and s_sf with a wall, and the pressure force of Eq. 16 with its
+    sign restored, -m_i m_j (P_i/rho_i^2 + P_j/rho_j^2) (1/r) dW/dr. Fluid-wall pairs take
+    max(P, 0) on both sides: walls only push, adhesion is the pairwise force's (decisions #35)."""
+    s = s_ff if fluid[j] else s_sf
+    f = s * interaction_shape(r, h) / r if s != 0.0 else 0.0
+    if r < h:
+        p_i, p_j = pressure[i], pressure[j]
+        if not fluid[j]:
+            p_i, p_j = max(p_i, 0.0), max(p_j, 0.0)
+        f -= mass[i] * mass[j] * (p_i / (rho[i] * rho[i]) + p_j / (rho[j] * rho[j])) * wendland_gradient_over_r(r, h)
+    return f
+
+
 @njit(parallel=True, cache=True)
 def accelerations(pos, vel, mass, rho, pressure, viscosity, fluid, s_ff, s_sf, h, gravity,
                   cell, order, start, neighbours, shifts):
@@ -74,7 +91,6 @@ def accelerations(pos, vel, mass, rho, pressure, viscosity, fluid, s_ff, s_sf, h
         if not fluid[i]:
             continue
         c = cell[i]
-        p_i = pressure[i] / (rho[i] * rho[i])
         ax, ay, az = gravity[0], gravity[1], gravity[2]
         for k in range(neighbours.shape[1]):
             nc = neighbours[c, k]
@@ -88,11 +104,9 @@ def accelerations(pos, vel, mass, rho, pressure, viscosity, fluid, s_ff, s_sf, h
                 if r2 >= cutoff2 or r2 == 0.0:
                     continue
                 r = math.sqrt(r2)
-                s = s_ff if fluid[j] else s_sf
-                f = s * interaction_shape(r, h) / (r * mass[i]) if s != 0.0 else 0.0
+                f = pair_force_over_r(i, j, r, h, mass, rho, pressure, fluid, s_ff, s_sf) / mass[i]
                 if r2 < h2:
                     grad = wendland_gradient_over_r(r, h)  # grad_i W_ij = (dx, dy, dz) * grad
-                    f -= mass[j] * (p_i + pressure[j] / (rho[j] * rho[j])) * grad
                     visc = mass[j] * (viscosity[i] + viscosity[j]) / (rho[i] * rho[j]) * grad
                     ax += visc * (vel[i, 0] - vel[j, 0])
                     ay += visc * (vel[i, 1] - vel[j, 1])

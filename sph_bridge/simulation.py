@@ -133,8 +133,8 @@ class Simulation:
         self._wrap()
         self._bin()
         rho = density(self.pos, self.mass, self.h, *self._lists(), self.grid.inner)
-        phi, normal, self.number_density = proximity(self.pos, self.mass, rho, f, self.h, *self._lists(),
-                                                     self.grid.inner)
+        phi, normal, self.number_density = proximity(self.pos, f, self.h, self.bulk_number_density,
+                                                     *self._lists(), self.grid.inner)
         bounced = bounce_back(self.pos, (v_half, v_bar), phi, normal, f, self.params.dx)
         if bounced:
             self._wrap()

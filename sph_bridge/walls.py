@@ -64,11 +64,17 @@ def wall_state(pos, vel, pressure, rho, fluid, gravity, h, cell, order, start, n
 
 
 @njit(parallel=True, cache=True)
-def proximity(pos, mass, rho, fluid, h, cell, order, start, neighbours, shifts, inner):
-    """Per fluid particle, the proximity ratio phi = n_fluid / n (number densities, Eqs. 18-20;
-    0.5 on the nominal wall surface) and the unit colour-function gradient s = grad c / |grad c|,
-    c = sum_j (m_j/rho_j) psi_j W_ij with psi = 1 for fluid (Eqs. 22-23), pointing into the fluid;
-    also the number density n = sum_j W_ij (fluid and wall)."""
+def proximity(pos, fluid, h, bulk_number, cell, order, start, neighbours, shifts, inner):
+    """Per fluid particle, the proximity ratio phi = 1 - n_wall / n_bulk (0.5 on the nominal wall
+    surface, 1 from h into the fluid) and the unit normal -grad n_wall / |grad n_wall| pointing
+    away from the wall; also the number density n = sum_j W_ij (fluid and wall).
+
+    Seed 000 Eqs. 18-23 take phi = n_fluid / n and the normal from the fluid colour gradient.
+    Both equal these where the fluid fills the kernel (n_fluid + n_wall = n_bulk), but at a
+    free surface or a contact line the missing fluid neighbours pull n_fluid / n below 0.5 on
+    the first fluid layer, which then bounced every step and pinned the contact line (the
+    truncation bias digest §2.9c mentions; decisions #35). Measuring the wall's share against
+    the bulk lattice value keeps the paper's flat-wall values (Eq. 21) everywhere."""
     n = pos.shape[0]
     phi = np.ones(n)
     normal = np.zeros((n, 3))
@@ -78,7 +84,7 @@ def proximity(pos, mass, rho, fluid, h, cell, order, start, neighbours, shifts, 
         if not fluid[i]:
             continue
         c = cell[i]
-        n_all, n_fluid, gx, gy, gz = 0.0, 0.0, 0.0, 0.0, 0.0
+        n_all, n_wall, gx, gy, gz = 0.0, 0.0, 0.0, 0.0, 0.0
         for k in range(inner):
             nc = neighbours[c, k]
             if nc < 0:
@@ -91,18 +97,17 @@ def proximity(pos, mass, rho, fluid, h, cell, order, start, neighbours, shifts, 
                 r = math.sqrt(r2)
                 w = wendland(r, h)
                 n_all += w
-                if fluid[j]:
-                    n_fluid += w
-                    if j != i:
-                        g = mass[j] / rho[j] * wendland_gradient_over_r(r, h)
-                        gx += g * dx
-                        gy += g * dy
-                        gz += g * dz
-        phi[i] = n_fluid / n_all
+                if not fluid[j]:
+                    n_wall += w
+                    # grad_i W_ij = r_ij (1/r) dW/dr points from i toward j: -grad n_wall points away
+                    g = wendland_gradient_over_r(r, h)
+                    gx -= g * dx
+                    gy -= g * dy
+                    gz -= g * dz
+        phi[i] = 1.0 - n_wall / bulk_number
         number[i] = n_all
         norm = math.sqrt(gx * gx + gy * gy + gz * gz)
         if norm > 0.0:
-            # grad_i W_ij = r_ij (1/r) dW/dr points from i toward j, so grad c toward the fluid
             normal[i, 0], normal[i, 1], normal[i, 2] = gx / norm, gy / norm, gz / norm
     return phi, normal, number
 

@@ -133,22 +133,23 @@ def flat_wall_scene(dx=1e-3, n=12, depth=10):
 
 
 def test_proximity_ratio_and_normal_at_a_flat_wall():
-    # seed 000 Eq. 21: phi = 0.5 on the nominal surface, 1 from h into the fluid; the colour
-    # gradient points into the fluid (+z). A particle pushed 0.3 dx into the wall has phi < 0.5
-    # and bounces back along +z by beta dx (1 - phi/0.5) (Eq. 24)
+    # seed 000 Eq. 21: phi = 0.5 on the nominal surface, 1 from h into the fluid; the normal
+    # points into the fluid (+z). A particle pushed 0.3 dx into the wall has phi < 0.5 and
+    # bounces back along +z by beta dx (1 - phi/0.5) (Eq. 24). phi = 1 - n_wall/n_bulk
+    # (decisions #35), so a first-layer particle at a free surface or contact line, with fluid
+    # neighbours missing, still reads its distance from the wall
     from sph_bridge.walls import bounce_back, proximity
 
     dx = 1e-3
     h = support(dx)
+    bulk = lattice_sum(h, dx) / dx**3
     pos, is_fluid, grid = flat_wall_scene(dx)
     probe = np.flatnonzero(is_fluid & (np.abs(pos[:, 0] - 6.5 * dx) < 1e-9) & (np.abs(pos[:, 1] - 6.5 * dx) < 1e-9))
     first = probe[np.argmin(pos[probe, 2])]
     pos[first, 2] = -0.3 * dx
-    mass = np.full(len(pos), 1000 * dx**3)
     cell, order, start = grid.bin(pos)
     lists = (cell, order, start, grid.neighbours, grid.shifts, grid.inner)
-    rho = density(pos, mass, h, *lists)
-    phi, normal, _ = proximity(pos, mass, rho, is_fluid, h, *lists)
+    phi, normal, _ = proximity(pos, is_fluid, h, bulk, *lists)
     deep = is_fluid & (pos[:, 2] > h + dx)
     assert np.allclose(phi[deep], 1.0)
     assert phi[first] < 0.5
@@ -158,20 +159,27 @@ def test_proximity_ratio_and_normal_at_a_flat_wall():
     assert bounce_back(pos, (vel,), phi, normal, is_fluid, dx) == 1
     assert pos[first, 2] - z_before == pytest.approx(dx * (1 - phi[first] / 0.5), rel=1e-12)
     assert np.all(vel[first] == 0) and np.all(vel[probe[1]] == 1)
-    # on the nominal surface itself the fluid and wall lattices are mirror images within h, so
-    # phi = 0.5 (Eq. 21) but for the particle's own W(0), fluid, and the lattice site 0.5 dx above
-    # it that it vacated
+    # on the nominal surface the wall is the mirror image of a fluid half-lattice, so its number
+    # density is half the (half-offset) lattice sum: phi = 0.5 to the lattice sums' difference
     pos[first, 2] = 0.0
     cell, order, start = grid.bin(pos)
     lists = (cell, order, start, grid.neighbours, grid.shifts, grid.inner)
-    phi, _, _ = proximity(pos, mass, density(pos, mass, h, *lists), is_fluid, h, *lists)
+    phi, _, _ = proximity(pos, is_fluid, h, bulk, *lists)
     k = np.arange(-4, 5)
     i, j, k = np.meshgrid(k, k, k, indexing="ij")
     w = np.vectorize(wendland)(dx * np.sqrt(i**2 + j**2 + (k + 0.5) ** 2), h)
-    half = w[k >= 0].sum()  # the fluid side; the wall side (3 layers) is its mirror image within h
-    own = wendland(0.0, h) - wendland(0.5 * dx, h)
-    assert phi[first] == pytest.approx((half + own) / (2 * half + own), rel=1e-12)
+    wall_side = w[k < 0].sum()  # layers at 0.5, 1.5, 2.5 dx behind the surface (3.5 dx is beyond h)
+    assert phi[first] == pytest.approx(1.0 - wall_side / bulk, rel=1e-12)
     assert abs(phi[first] - 0.5) < 0.01
+    # the same particle alone on the wall (no fluid neighbours: a contact line's extreme) reads
+    # the same phi, so it is not bounced
+    alone = np.concatenate([pos[first:first + 1], pos[~is_fluid]])
+    alone_fluid = np.zeros(len(alone), bool)
+    alone_fluid[0] = True
+    cell, order, start = grid.bin(alone)
+    phi_alone, _, _ = proximity(alone, alone_fluid, h, bulk, cell, order, start, grid.neighbours, grid.shifts,
+                                grid.inner)
+    assert phi_alone[0] == pytest.approx(phi[first], rel=1e-12)
 
 
 def test_wall_particles_mirror_the_fluid_velocity():
