@@ -1,5 +1,6 @@
 """``python -m sph_bridge {droplet,poiseuille,hydrostatic,calibrate}``: PF-SPH validation cases
-with run directories.
+with run directories; ``python -m sph_bridge lga ...``: the FHP-II lattice-gas studies
+(:mod:`sph_bridge.lga.cli`).
 
     python -m sph_bridge droplet     [--dx M] [--theta DEG] [--volume M3] [--gravity G] [--ridge] [--out DIR]
     python -m sph_bridge calibrate   [--dx M] [--theta DEG] [--surface-tension N/M] [--out DIR]
@@ -33,6 +34,7 @@ from hmdem.cli import InputError, OneLineParser, dispatch, int_at_least, new_run
 from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_toml
 
 from . import calibrations, cases, droplet
+from .interrupts import exit_status, interrupted
 from .output import particle_state, write_collection, write_particles
 
 PROG = "python -m sph_bridge"
@@ -66,7 +68,8 @@ def non_negative(text: str) -> float:
 
 
 def build_parser() -> OneLineParser:
-    parser = _Parser(prog=PROG, description="PF-SPH validation cases (seed 000)")
+    parser = _Parser(prog=PROG, description="PF-SPH validation cases (seed 000); 'python -m sph_bridge lga -h' for "
+                                            "the lattice-gas fracture studies (seed 003)")
     sub = parser.add_subparsers(dest="command", parser_class=_Parser)
     text = "sessile drop (or --ridge) relaxed on a wall: height, width and contact angle against theory"
     p = sub.add_parser("droplet", help=text, description=text)
@@ -159,20 +162,6 @@ def run_case(args) -> int:
           + ", ".join(f"{k} = {v:.4g}" for k, v in result.summary.items() if isinstance(v, float)))
     print(f"run directory: {out}")
     return exit_status(status)
-
-
-def interrupted(exc: BaseException) -> bool:
-    """A KeyboardInterrupt, or an error whose cause chain holds one (a Ctrl-C landing inside a
-    numba call comes out as SystemError)."""
-    while exc is not None:
-        if isinstance(exc, KeyboardInterrupt):
-            return True
-        exc = exc.__cause__ or exc.__context__
-    return False
-
-
-def exit_status(status: str) -> int:
-    return {"finished": 0, "interrupted": 130}.get(status, 1)
 
 
 def run_figures(sim) -> dict:
@@ -413,9 +402,14 @@ def run_calibrate(args) -> int:
 
 
 def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["lga"]:  # the lattice-gas studies have their own parser (sph_bridge.lga.cli)
+        from .lga.cli import main as lga_main
+
+        return lga_main(argv[1:])
     parser = build_parser()
     args = parser.parse_args(argv)
-    args.argv = list(sys.argv[1:] if argv is None else argv)  # recorded in config.toml
+    args.argv = argv  # recorded in config.toml
     return dispatch(PROG, parser, args, {"hydrostatic": run_case, "poiseuille": run_case, "droplet": run_droplet,
                                          "calibrate": run_calibrate})
 

@@ -1,0 +1,463 @@
+"""``python -m sph_bridge lga {poiseuille,rough,permeability,nonlinear}``: FHP-II lattice-gas
+studies of seed 003 with run directories.
+
+    lga poiseuille   [--nx N] [--ny ROWS] [--mirror] [--density RHO] [--g G] [--steps N] [--seed N]
+    lga rough        [--nx N] [--ny ROWS] [--hurst H] [--relative-roughness R] [--g G] [--steps N] [--seed N]
+    lga permeability [--nx N] [--ny ROWS] [--hurst H ...] [--relative-roughness R ...] [--surfaces N] ...
+    lga nonlinear    [--nx N] [--ny ROWS] [--hurst H] [--relative-roughness R] [--steps N] [--seed N]
+
+``--nx`` is the periodic length along the flow. ``--ny`` is the smooth channel's fluid rows
+(poiseuille) or the largest asperity y_max in rows (rough studies; seed 003: 90, and 200 for
+the nonlinear channel). ``--relative-roughness`` is seed 003's y_max / (delta_av/2), in (0, 1):
+delta_av/(2 y_max) = 1.35, 1.7, 2.4 are 0.741, 0.588, 0.417. ``--g`` is the forcing fraction
+(default: drives chosen for low Mach numbers); ``--steps`` the averaging steps per drive
+(default: 30 slowest-mode relaxation times). Every directory holds config.toml, summary.json,
+timeseries.csv, PNG figures and field.vtu (ParaView). Bad input: one line, exit status 2.
+Ctrl-C writes what was averaged, with status "interrupted".
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+from hmdem.cli import InputError, OneLineParser, dispatch, int_at_least, new_run_directory, positive_number
+from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_toml
+
+from ..interrupts import exit_status
+from . import figures, studies
+from .lattice import ROW
+from .rules import REST_DENSITY, viscosity
+
+PROG = "python -m sph_bridge lga"
+PAPER_OPENINGS = (1.35, 1.7, 2.4)  # delta_av/(2 y_max) of the issue's permeability study
+POISEUILLE_VELOCITIES = (0.02, 0.04, 0.06)  # mean velocities of the default drives (u_max <= 0.09)
+ROUGH_VELOCITIES = (0.01, 0.02)  # mean velocities Q_full/delta_av aimed at: Darcy drives (Re ~ 5-15)
+NONLINEAR_REYNOLDS = (20, 50, 80, 115, 150, 180)  # seed 003 §5: Re ~ 20-180
+MACH_LIMIT = 0.30  # seed 003 §5: the largest velocity it allowed (digest C17)
+
+
+class _Parser(OneLineParser):
+    command = PROG
+
+
+def fraction(text: str) -> float:
+    value = positive_number(text)
+    if not value < 1.0:
+        raise argparse.ArgumentTypeError(f"must be in (0, 1), got {text!r}")
+    return value
+
+
+def roughness(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be y_max/(delta_av/2) in (0, 1), got {text!r}") from None
+    if not 0.0 < value < 1.0:
+        hint = f" (delta_av/(2 y_max) = {value:g} is {1 / value:.3f})" if value > 1 else ""
+        raise argparse.ArgumentTypeError(f"must be y_max/(delta_av/2) in (0, 1), got {text!r}{hint}")
+    return value
+
+
+def density(text: str) -> float:
+    value = positive_number(text)
+    if not value < 7.0:
+        raise argparse.ArgumentTypeError(f"must be particles per node in (0, 7), got {text!r}")
+    return value
+
+
+def build_parser() -> OneLineParser:
+    parser = _Parser(prog=PROG, description="FHP-II lattice-gas flow in smooth and self-affine rough channels "
+                                             "(seed 003)")
+    sub = parser.add_subparsers(dest="command", parser_class=_Parser)
+    texts = {"poiseuille": "smooth channel (or --mirror half channel): parabola and nu from the Q-dP slope",
+             "rough": "one self-affine rough fracture: Q, both force estimators, hydraulic aperture",
+             "permeability": "(delta_H/delta_av)^3 against delta_av/(2 y_max) over H and surfaces, Eq. 11 fit",
+             "nonlinear": "Delta P/Q against Re in a rough and a smooth channel (seed 003 §5)"}
+    for name, text in texts.items():
+        p = sub.add_parser(name, help=text, description=text)
+        rough = name != "poiseuille"
+        p.add_argument("--nx", type=int_at_least(64), default=552 if rough else 600,
+                       help="periodic length along the flow in lattice units (default %(default)s" +
+                            ("; the rough section nx - 40 must be a power of two)" if rough else ")"))
+        p.add_argument("--ny", type=int_at_least(8), default=(200 if name == "nonlinear" else 90) if rough else 100,
+                       help=("largest asperity y_max in rows" if rough else "fluid rows") + " (default %(default)s)")
+        p.add_argument("--density", type=density, default=REST_DENSITY,
+                       help="particles per node (default %(default)s, seed 003)")
+        p.add_argument("--steps", type=int_at_least(100), help="averaging steps per drive (default: 30 relaxation "
+                                                                 "times of the slowest viscous mode, extended up "
+                                                                 "to 400 until Q is known to 1 %%)")
+        p.add_argument("--seed", type=int_at_least(0, "a non-negative integer"), default=0,
+                       help="random seed of the lattice and (rough) the first surface (default 0)")
+        if name in ("poiseuille", "rough"):
+            p.add_argument("--g", type=fraction, help="forcing fraction per step (one drive; default: "
+                                                      "a ladder of low-Mach drives)")
+        if name == "poiseuille":
+            p.add_argument("--mirror", action="store_true", help="half channel under a mirror row (claim C8)")
+        if name in ("rough", "nonlinear"):
+            p.add_argument("--hurst", type=fraction, default=0.5, help="Hurst exponent H (default 0.5)")
+            p.add_argument("--relative-roughness", type=roughness, default=0.625 if name == "nonlinear" else 0.741,
+                           help="y_max/(delta_av/2) in (0, 1) (default %(default)s)")
+        if name == "permeability":
+            p.add_argument("--hurst", type=fraction, action="append", help="Hurst exponent (repeatable; default "
+                                                                       "0.3, 0.5, 0.7)")
+            p.add_argument("--relative-roughness", type=roughness, action="append",
+                           help="y_max/(delta_av/2) (repeatable; default 0.741, 0.588, 0.417)")
+            p.add_argument("--surfaces", type=int_at_least(1), default=2, help="surfaces per H (default 2)")
+        p.add_argument("--out", type=Path, help="run directory (must not exist; default runs/lga-<case>-<time>)")
+        p.add_argument("--quiet", action="store_true", help="no progress bar")
+    return parser
+
+
+class Progress:
+    """A tqdm bar over lattice steps (silent with --quiet)."""
+
+    def __init__(self, args, total: int):
+        self.bar = None
+        if not args.quiet:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, desc=f"lga {args.command}", unit=" steps", unit_scale=True)
+
+    def __call__(self, steps: int) -> None:
+        if self.bar is not None:
+            if self.bar.n + steps > self.bar.total:  # an averaging window extended for precision
+                self.bar.total = self.bar.n + steps
+            self.bar.update(steps)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def run_directory(args, config: dict, summary: dict, timeseries: list, write_figures) -> Path:
+    out = args.out_dir
+    with atomic_run_directory(out) as tmp:
+        write_toml(tmp / "config.toml", {"run": {"command": f"{PROG} " + " ".join(args.argv), "case": args.command},
+                                         **config})
+        write_json(tmp / "summary.json", summary)
+        write_rows(tmp / "timeseries.csv", ("step", "drive", "flow_rate", "force_applied_per_node",
+                                            "force_friction_per_node"), timeseries)
+        write_figures(tmp)
+    return out
+
+
+def run_channels(args, channel_drives, plan_of) -> str:
+    """Run each (name, channel, forcings) in turn under one progress bar; returns the status."""
+    total = sum(plan_of(ch).steps(len(forcings)) for _, ch, forcings in channel_drives)
+    bar = Progress(args, total)
+    args.timeseries = []
+    status = "finished"
+    try:
+        for k, (name, channel, forcings) in enumerate(channel_drives):
+            series = []
+            try:
+                channel.run(forcings, plan_of(channel), args.density, args.seed + k, progress=bar, timeseries=series)
+            finally:
+                args.timeseries += [(s[0], name, *s[1:]) for s in series]
+    except KeyboardInterrupt:
+        status = "interrupted"
+    bar.close()
+    return status
+
+
+def plan_for(args):
+    return lambda channel: studies.Plan.for_aperture(channel.aperture, args.steps)
+
+
+def common_config(args) -> dict:
+    return {"lattice": {"nx": args.nx, "ny": args.ny, "density": args.density, "seed": args.seed,
+                        "averaging_steps": args.steps or "auto"}}
+
+
+def finish(args, status: str, started: float, summary: dict) -> dict:
+    return {"case": args.command, "status": status, "wall_time_s": time.perf_counter() - started, **summary}
+
+
+# --- poiseuille ---------------------------------------------------------------------------
+
+
+def run_poiseuille(args) -> int:
+    args.out_dir = new_run_directory(args.out, f"lga-{args.command}")
+    started = time.perf_counter()
+    channel = studies.smooth(args.nx, args.ny, args.mirror)
+    forcings = [args.g] if args.g else studies.forcings_for_velocities(POISEUILLE_VELOCITIES, channel.aperture,
+                                                                       args.density)
+    status = run_channels(args, [("smooth", channel, forcings)], plan_for(args))
+    done = [r for r in channel.results if r.averaging_steps > 0]
+    channel.results = done
+    summary = {"geometry": "half channel under a mirror" if args.mirror else "smooth channel",
+               "width": channel.aperture, "fluid_rows": args.ny, "length": args.nx,
+               "reynolds_definition": "Re = Q_full / nu (Eq. 6)", "drives": channel.rows()}
+    if done:
+        summary.update(studies.poiseuille_summary(channel))
+        summary["force_mismatch_max"] = max(abs(r.force_mismatch) for r in done)
+        summary["u_max"] = max(r.u_max for r in done)
+    summary = finish(args, status, started, summary)
+
+    def write(tmp):
+        if done:
+            figures.velocity_profile(tmp / "profile.png", channel, done[-1], summary, summary["viscosity_eq6"])
+            figures.flow_rate_against_force(tmp / "flow_rate.png", summary["drives"],
+                                            f"ν from the slope: {summary['viscosity_fit']:.4f} (Eq. 6: "
+                                            f"{summary['viscosity_eq6']:.4f})")
+            figures.write_field(tmp / "field.vtu", channel.geometry, done[-1])
+
+    out = run_directory(args, {**common_config(args), "channel": {"mirror": args.mirror,
+                                                                  "forcing": list(forcings)}},
+                        summary, args.timeseries, write)
+    if done:
+        print(f"lga poiseuille: {status}; nu from the Q-dP slope {summary['viscosity_fit']:.4f} (Eq. 6: "
+              f"{summary['viscosity_eq6']:.4f}, {100 * summary['viscosity_error']:+.1f} %), profile R^2 "
+              f"{summary['profile_r2']:.4f}, u_max/u_mean {summary['u_max_over_mean']:.3f}")
+    print(f"run directory: {out}")
+    return exit_status(status)
+
+
+# --- rough ----------------------------------------------------------------------------------
+
+
+def rough_channel(args, hurst_exponent: float, relative_roughness: float, surface_seed: int):
+    try:
+        return studies.rough(hurst_exponent, relative_roughness, args.ny, args.nx, surface_seed)
+    except ValueError as exc:
+        raise InputError(f"--nx: {exc}") from None
+
+
+def rough_forcings(args, channel) -> list[float]:
+    if getattr(args, "g", None):
+        return [args.g]
+    # a rough channel passes ~Eq. 11's fraction of the smooth channel's flow at the same force
+    expected = max(studies.eq11(studies.opening(channel)), 0.05)
+    return [g / expected for g in studies.forcings_for_velocities(ROUGH_VELOCITIES, channel.aperture, args.density)]
+
+
+def rough_row(channel, rows: list[dict], target: float) -> dict:
+    d = channel.geometry.description
+    phis = [r["phi"] for r in rows]
+    out = {"target_relative_roughness": target, "hurst": d["hurst"], "surface_seed": d["surface_seed"], "mean_aperture": d["mean_aperture"],
+           "y_max": d["y_max"], "opening": studies.opening(channel),
+           "relative_roughness": 1.0 / studies.opening(channel), "entrance_width": d.get("entrance_width"),
+           "phi": phis[0], "eq11": studies.eq11(studies.opening(channel)), "drives": rows}
+    if len(rows) >= 2:
+        forces = [r["force_applied_per_node"] for r in rows]
+        q = [r["flow_rate_full"] for r in rows]
+        out["darcy_slope_change"] = (q[1] / forces[1]) / (q[0] / forces[0]) - 1.0
+        out["darcy_residual"] = studies.through_origin(forces, q)[1]
+    return out
+
+
+def run_rough(args) -> int:
+    args.out_dir = new_run_directory(args.out, f"lga-{args.command}")
+    started = time.perf_counter()
+    channel = rough_channel(args, args.hurst, args.relative_roughness, args.seed)
+    forcings = rough_forcings(args, channel)
+    status = run_channels(args, [("rough", channel, forcings)], plan_for(args))
+    channel.results = [r for r in channel.results if r.averaging_steps > 0]
+    rows = channel.rows()
+    summary = {"reynolds_definition": "Re = Q_full / nu (Eq. 6)", "mach_limit": MACH_LIMIT}
+    if rows:
+        summary.update(rough_row(channel, rows, args.relative_roughness))
+        summary["force_mismatch_max"] = max(abs(r["force_mismatch"]) for r in rows)
+        summary["u_max"] = max(r["u_max"] for r in rows)
+    summary = finish(args, status, started, summary)
+
+    def write(tmp):
+        np.save(tmp / "profile.npy", channel.geometry.description["profile"])
+        if channel.results:
+            last = channel.results[-1]
+            figures.velocity_field(tmp / "velocity.png", channel.geometry, last,
+                                   f"H = {args.hurst:g}, δ_av/(2 y_max) = {studies.opening(channel):.3f}, "
+                                   f"Re = {rows[-1]['reynolds']:.1f}")
+            figures.write_field(tmp / "field.vtu", channel.geometry, last)
+
+    out = run_directory(args, {**common_config(args), "rough": rough_config(args, channel, forcings)},
+                        summary, args.timeseries, write)
+    if rows:
+        print(f"lga rough: {status}; delta_av/(2 y_max) = {summary['opening']:.3f}, (delta_H/delta_av)^3 = "
+              f"{summary['phi']:.4f} (Eq. 11: {summary['eq11']:.4f}), applied/friction - 1 = "
+              f"{rows[0]['force_mismatch']:+.4f}")
+    print(f"run directory: {out}")
+    return exit_status(status)
+
+
+def rough_config(args, channel, forcings) -> dict:
+    d = channel.geometry.description
+    return {"hurst": d["hurst"], "relative_roughness_target": getattr(args, "relative_roughness", None) or "",
+            "surface_seed": d["surface_seed"], "asperity_rows": args.ny, "length": d["length"],
+            "flat_sections": d["flat"], "forcing": list(forcings)}
+
+
+# --- permeability ---------------------------------------------------------------------------
+
+
+def run_permeability(args) -> int:
+    args.out_dir = new_run_directory(args.out, f"lga-{args.command}")
+    started = time.perf_counter()
+    hursts = args.hurst or [0.3, 0.5, 0.7]
+    roughnesses = args.relative_roughness or [1.0 / o for o in PAPER_OPENINGS]
+    jobs, targets = [], {}
+    for h in hursts:
+        for s in range(args.surfaces):
+            for r in roughnesses:
+                channel = rough_channel(args, h, r, args.seed + s)
+                jobs.append((f"H{h:g}-s{args.seed + s}-r{r:.3f}", channel, rough_forcings(args, channel)))
+                targets[jobs[-1][0]] = r
+    status = run_channels(args, jobs, plan_for(args))
+    points = []
+    for name, channel, _ in jobs:
+        channel.results = [r for r in channel.results if r.averaging_steps > 0]
+        if channel.results:
+            points.append({"name": name, **rough_row(channel, channel.rows(), targets[name])})
+    summary = {"reynolds_definition": "Re = Q_full / nu (Eq. 6)", "points": points}
+    if len(points) >= 2:
+        alpha, alpha_error = studies.fit_alpha([p["opening"] for p in points], [p["phi"] for p in points])
+        summary.update({"alpha": alpha, "alpha_error": alpha_error, "paper_alpha": studies.PAPER_ALPHA,
+                        "force_mismatch_max": max(abs(d["force_mismatch"]) for p in points for d in p["drives"]),
+                        "u_max": max(d["u_max"] for p in points for d in p["drives"])})
+        summary["by_opening"] = spread_by_opening(points)
+    summary = finish(args, status, started, summary)
+
+    def write(tmp):
+        if len(points) >= 2:
+            figures.collapse(tmp / "collapse.png", points, summary["alpha"], summary["alpha_error"])
+        write_rows(tmp / "points.csv", ("name", "hurst", "surface_seed", "opening", "phi", "eq11", "mean_aperture"),
+                   [(p["name"], p["hurst"], p["surface_seed"], p["opening"], p["phi"], p["eq11"],
+                     p["mean_aperture"]) for p in points])
+
+    out = run_directory(args, {**common_config(args), "study": {
+        "hurst": hursts, "relative_roughness": roughnesses, "surfaces": args.surfaces}},
+        summary, args.timeseries, write)
+    if "alpha" in summary:
+        print(f"lga permeability: {status}; {len(points)} channels, fitted alpha = {summary['alpha']:.3f} +- "
+              f"{summary['alpha_error']:.3f} (paper {studies.PAPER_ALPHA})")
+    print(f"run directory: {out}")
+    return exit_status(status)
+
+
+def spread_by_opening(points: list[dict]) -> list[dict]:
+    """Per target roughness: the mean phi over all H and surfaces and the largest deviation of an
+    H's mean from it (claim C10), against Eq. 11 and the continuum values."""
+    groups = {}
+    for p in points:
+        groups.setdefault(p["target_relative_roughness"], []).append(p)
+    out = []
+    for key, sel in sorted(groups.items(), reverse=True):
+        phis = np.array([p["phi"] for p in sel])
+        by_h = {}
+        for p in sel:
+            by_h.setdefault(p["hurst"], []).append(p["phi"])
+        h_means = {h: float(np.mean(v)) for h, v in by_h.items()}
+        mean = float(phis.mean())
+        opening = float(np.mean([p["opening"] for p in sel]))
+        entry = {"opening": opening, "phi_mean": mean, "phi_by_hurst": {f"{h:g}": v for h, v in h_means.items()},
+                 "hurst_spread": max(abs(v / mean - 1.0) for v in h_means.values()),
+                 "eq11": studies.eq11(opening), "ratio_to_eq11": mean / studies.eq11(opening)}
+        nearest = min(studies.CONTINUUM, key=lambda k: abs(k - opening))
+        if abs(nearest - opening) < 0.05:  # the digest's lattice-Boltzmann Stokes values (§6)
+            continuum = studies.CONTINUUM[nearest]
+            entry["ratio_to_continuum_by_hurst"] = {f"{h:g}": v / continuum[h] for h, v in h_means.items()
+                                                    if h in continuum}
+        out.append(entry)
+    return out
+
+
+# --- nonlinear ------------------------------------------------------------------------------
+
+
+def run_nonlinear(args) -> int:
+    """Re ladder in the rough channel and in a smooth half channel of the same mean aperture: the
+    first drive is linear, later forcings follow from the measured resistance."""
+    args.out_dir = new_run_directory(args.out, f"lga-{args.command}")
+    started = time.perf_counter()
+    rough = rough_channel(args, args.hurst, args.relative_roughness, args.seed)
+    half_rows = max(2, int(round(rough.aperture / 2 / ROW - 0.5)))
+    smooth = studies.smooth(args.nx, half_rows, True)
+
+    def plan_of(channel):  # strong drives: a shorter window reaches 1 % sooner
+        return studies.Plan.for_aperture(channel.aperture, args.steps, times=10, max_times=100)
+
+    total = sum(plan_of(ch).steps(len(NONLINEAR_REYNOLDS)) for ch in (rough, smooth))
+    bar = Progress(args, total)
+    args.timeseries = []
+    status = "finished"
+    try:
+        for name, channel in (("rough", rough), ("smooth", smooth)):
+            reynolds_ladder(args, name, channel, plan_of(channel), bar)
+    except KeyboardInterrupt:
+        status = "interrupted"
+    bar.close()
+    series = {name: ch.rows() for name, ch in (("rough", rough), ("smooth", smooth)) if ch.results}
+    summary = {"reynolds_definition": "Re = Q_full / nu (Eq. 6)", "mach_limit": MACH_LIMIT,
+               "rough_opening": studies.opening(rough), "smooth_width": smooth.aperture, "series": series}
+    for name, rows in series.items():
+        resistance = [r["pressure_drop_per_length"] / r["flow_rate_full"] for r in rows]
+        summary[f"{name}_drag_increase"] = max(resistance) / resistance[0] - 1.0
+        summary[f"{name}_reynolds_range"] = [rows[0]["reynolds"], rows[-1]["reynolds"]]
+        summary[f"{name}_u_max"] = max(r["u_max"] for r in rows)
+    summary = finish(args, status, started, summary)
+
+    def write(tmp):
+        if series:
+            figures.drag_against_reynolds(tmp / "drag.png", series)
+        if rough.results:
+            figures.velocity_field(tmp / "velocity.png", rough.geometry, rough.results[-1],
+                                   f"H = {args.hurst:g}, Re = {series['rough'][-1]['reynolds']:.0f}")
+            figures.write_field(tmp / "field.vtu", rough.geometry, rough.results[-1])
+
+    out = run_directory(args, {**common_config(args), "rough": rough_config(args, rough, []),
+                               "smooth": {"half_rows": half_rows, "width": smooth.aperture},
+                               "ladder": {"reynolds": list(NONLINEAR_REYNOLDS)}},
+                        summary, args.timeseries, write)
+    if "rough_drag_increase" in summary and "smooth_drag_increase" in summary:
+        print(f"lga nonlinear: {status}; Delta P/Q rises by {100 * summary['rough_drag_increase']:.1f} % (rough) and "
+              f"{100 * summary['smooth_drag_increase']:.1f} % (smooth) over Re "
+              f"{summary['rough_reynolds_range'][0]:.0f}-{summary['rough_reynolds_range'][1]:.0f}")
+    print(f"run directory: {out}")
+    return exit_status(status)
+
+
+def reynolds_ladder(args, name, channel, plan, bar) -> None:
+    """Drives aimed at each Re of :data:`NONLINEAR_REYNOLDS`, appended to ``channel.results`` as
+    they finish (a KeyboardInterrupt keeps those, and the partial window if it averaged): the
+    next forcing scales the last one by the Re still missing (the resistance rises slowly, so one
+    step lands close)."""
+    from .flow import drive
+    from .lattice import Lattice
+
+    lattice = Lattice(channel.geometry, density=args.density, seed=args.seed)
+    nu = viscosity(args.density)
+    g = studies.forcings_for_velocities([NONLINEAR_REYNOLDS[0] * nu / channel.aperture], channel.aperture,
+                                        args.density)[0]
+    g /= max(studies.eq11(studies.opening(channel)), 0.05) if name == "rough" else 1.0
+    for k, target in enumerate(NONLINEAR_REYNOLDS):
+        series = []
+        try:
+            result = drive(lattice, g, plan.spinup if k == 0 else plan.spinup // 2, plan.average, progress=bar,
+                           timeseries=series, precision=plan.precision, max_average=plan.max_average)
+        finally:
+            args.timeseries += [(s[0], f"{name}-Re{target}", *s[1:]) for s in series]
+        if result.averaging_steps > 0:
+            channel.results.append(result)
+        if result.interrupted:
+            raise KeyboardInterrupt
+        if k + 1 < len(NONLINEAR_REYNOLDS):
+            last = channel.rows()[-1]
+            scale = NONLINEAR_REYNOLDS[k + 1] / max(last["reynolds"], 1e-9)
+            if last["u_max"] * scale > MACH_LIMIT:  # C17: the next drive would pass u = 0.30
+                print(f"lga nonlinear: {name} ladder stops at Re = {last['reynolds']:.0f} (the next drive "
+                      f"would exceed u_max = {MACH_LIMIT})")
+                break
+            g = min(0.9, g * scale)
+
+
+def main(argv) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    args.argv = list(argv)
+    return dispatch(PROG, parser, args, {"poiseuille": run_poiseuille, "rough": run_rough,
+                                         "permeability": run_permeability, "nonlinear": run_nonlinear})
+

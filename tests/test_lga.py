@@ -1,0 +1,389 @@
+"""FHP-II lattice gas (issue 6, seed 003): the automaton's exact invariants, its transport
+coefficients, the surface generator and the smooth-channel validation. Claim numbers (C1...)
+are those of ../shared/digests/seed003.md §5."""
+
+from __future__ import annotations
+
+import json
+import math
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from sph_bridge import surfaces
+from sph_bridge.lga import automaton, channels, rules, studies
+from sph_bridge.lga.cli import main as lga_main
+from sph_bridge.lga.lattice import Geometry, Lattice, node_positions
+
+CMD = [sys.executable, "-m", "sph_bridge", "lga"]
+
+
+def open_box(ny=40, nx=150):
+    empty = np.zeros((ny, nx), dtype=bool)
+    return Geometry(empty, empty, periodic_y=True)
+
+
+# --- C1-C3: the rules and the transport coefficients ---------------------------------------
+
+
+def test_collision_table_is_fhp2():
+    # C1: the bit-parallel kernel's table equals R1-R4 written as sets, every outcome conserves
+    # particles and momentum (integer half units), and nothing collides with four or more particles
+    table = rules.kernel_outcomes()
+    for state in range(rules.STATES):
+        assert table[state] == rules.reference_outcomes(state), state
+        assert all(rules.conserves(state, out) for out in table[state])
+        if bin(state).count("1") >= 4:
+            assert table[state] == {state: 1.0}
+    changed = sum(1 for s in range(rules.STATES) if table[s] != {s: 1.0})
+    assert changed == 3 * 2 + 2 + 6 * 2  # head-on pairs with and without rest, two triples, R4 both ways
+
+
+def test_boltzmann_viscosity_of_the_table_is_eq6():
+    # C2: the linearised Boltzmann operator of the implemented table gives Eq. 6 (0.307279 at
+    # rho = 1, digest XCHK) at every density; the operator itself reproduces FHP-I's known
+    # 1/(12 d (1-d)^3) - 1/8, and a table without R2 gives the digest's 0.3382 (so the check bites)
+    table = rules.kernel_outcomes()
+    assert rules.boltzmann_viscosity(table, 1 / 7) == pytest.approx(0.307279, abs=1e-6)
+    for d in (0.1, 0.2, 0.3):
+        assert rules.boltzmann_viscosity(table, d) == pytest.approx(rules.viscosity(7 * d), rel=1e-9)
+    no_r2 = [dict(t) for t in table]
+    for s in range(rules.STATES):
+        chs = rules.channels(s)
+        if 0 in chs and len(chs) == 3 and rules.reference_outcomes(s) != {s: 1.0}:
+            no_r2[s] = {s: 1.0}
+    assert rules.boltzmann_viscosity(no_r2, 1 / 7) == pytest.approx(0.3382, abs=5e-4)
+
+    def fhp1(s):  # head-on pairs and symmetric triples only; a rest particle is a pure spectator
+        chs = rules.channels(s)
+        moving, rest = chs - {0}, chs & {0}
+        if len(moving) == 2 and max(moving) - min(moving) == 3:
+            k = min(moving)
+            return {rules.state_of(rest | {k + 1, (k + 3) % 6 + 1}): 0.5,
+                    rules.state_of(rest | {(k - 2) % 6 + 1, k + 2}): 0.5}
+        if moving in ({1, 3, 5}, {2, 4, 6}):
+            return {rules.state_of(rest | ({1, 2, 3, 4, 5, 6} - moving)): 1.0}
+        return {s: 1.0}
+
+    table1 = [fhp1(s) for s in range(rules.STATES)]
+    for d in (1 / 6, 0.25):
+        assert rules.boltzmann_viscosity(table1, d) == pytest.approx(1 / (12 * d * (1 - d) ** 3) - 0.125, rel=1e-9)
+
+
+def test_constants():
+    # C3: g(rho = 1) = 35/72 (Eq. 5) and the sound speed sqrt(3/7)
+    assert rules.galilean_factor(1.0) == pytest.approx(35 / 72, abs=1e-6)
+    assert rules.SOUND_SPEED == pytest.approx(0.65465, abs=1e-5)
+    assert rules.viscosity(1.0) == pytest.approx(0.307279, abs=1e-6)
+
+
+def test_eq11_reference_values():
+    # the digest's table of Eq. 11 (§3.2): 0.100 at 1.35, 0.169 at 1.70, 0.264 at 2.40
+    assert [round(studies.eq11(x), 3) for x in (1.35, 1.7, 2.4)] == [0.1, 0.169, 0.264]
+
+
+# --- the automaton: packing, propagation, invariants ---------------------------------------
+
+
+def test_pack_round_trip():
+    rng = np.random.default_rng(0)
+    sites = rng.random((7, 5, 130)) < 0.4
+    words = automaton.pack(sites)
+    assert words.shape == (7, 5, 3) and words.dtype == np.uint64
+    assert np.array_equal(automaton.unpack(words, 130), sites)
+
+
+@pytest.mark.parametrize("nx", [70, 128])
+def test_a_lone_particle_moves_along_its_channel(nx):
+    # every channel, from even and odd rows, starting at the row's ends and on both sides of a
+    # word boundary: each step is c_k (periodic in x); a full lap of the periodic row returns a
+    # c1 and a c4 particle to their nodes
+    ny = 20
+    x, y = node_positions(ny, nx)
+    for k in range(1, 7):
+        for row in (4, 5):
+            for start in (0, 63, 64, nx - 1):
+                lattice = Lattice(open_box(ny, nx), density=1e-9)
+                occupied = np.zeros((7, ny, nx), dtype=bool)
+                occupied[k, row, start % nx] = True
+                lattice.state[:] = automaton.pack(occupied)
+                path = []
+                for _ in range(3):
+                    kk, jj, ii = np.nonzero(automaton.unpack(lattice.state, nx))
+                    assert list(kk) == [k]
+                    path.append((x[jj[0], ii[0]], y[jj[0], ii[0]]))
+                    lattice.run(1, 0.0)
+                step = np.diff(np.array(path), axis=0)
+                step[:, 0] = (step[:, 0] + nx / 2) % nx - nx / 2  # periodic in x
+                assert np.allclose(step, rules.VELOCITIES[k], atol=1e-12), (k, row, start)
+    for k in (1, 4):
+        lattice = Lattice(open_box(ny, nx), density=1e-9)
+        occupied = np.zeros((7, ny, nx), dtype=bool)
+        occupied[k, 3, 5] = True
+        lattice.state[:] = automaton.pack(occupied)
+        lattice.run(nx, 0.0)
+        assert np.array_equal(automaton.unpack(lattice.state, nx), occupied)
+
+
+def test_unforced_open_box_conserves_particles_and_momentum():
+    # C4: no walls, no forcing: particle number and x-momentum the same after every step, and
+    # the mean occupation of each channel 1/7 within 3 standard deviations
+    lattice = Lattice(open_box(), seed=3)
+    first = lattice.totals()
+    for _ in range(60):
+        lattice.run(1, 0.0)
+        assert lattice.totals() == first
+    occupation = automaton.unpack(lattice.state, lattice.nx).reshape(7, -1).mean(axis=1)
+    n = lattice.ny * lattice.nx
+    sd = math.sqrt((1 / 7) * (6 / 7) / n)
+    assert np.all(np.abs(occupation - 1 / 7) < 3 * sd * math.sqrt(7))  # 3 sigma, Bonferroni over 7 channels
+
+
+def test_mirrors_conserve_x_momentum():
+    # walls without friction: between two mirror rows and without forcing, particle number and
+    # x-momentum are conserved to the bit every step (only bounce-back removes momentum)
+    ny, nx = 30, 150
+    mirror = np.zeros((ny, nx), dtype=bool)
+    mirror[0] = mirror[-1] = True
+    lattice = Lattice(Geometry(np.zeros_like(mirror), mirror), seed=4)
+    first = lattice.totals()
+    for _ in range(100):
+        lattice.run(1, 0.0)
+        assert lattice.totals() == first
+
+
+def test_momentum_identity_every_step():
+    # C5: with walls, a mirror and forcing, P_x(t+1) - P_x(t) = forcing - bounce-back loss exactly
+    profile = surfaces.midpoint_displacement(6, 0.5, np.random.default_rng(1))
+    geometry = channels.rough_channel(profile, 64, 8.0, 14.0, flat=8)
+    lattice = Lattice(geometry, seed=2)
+    particles, momentum = lattice.totals()
+    forced = 0
+    for _ in range(300):
+        gains, losses = lattice.run(1, 0.02)
+        n, p = lattice.totals()
+        assert n == particles
+        assert p - momentum == gains[0] - losses[0]
+        momentum = p
+        forced += gains[0]
+    assert forced > 0
+
+
+def test_parallel_kernel_is_bit_identical_to_serial():
+    # the chirality bits are a hash of (seed, step, row, word): thread count cannot change a run
+    geometry = channels.smooth_channel(200, 30)
+    results = []
+    for kernel in (automaton.advance_serial, automaton.advance_parallel):
+        lattice = Lattice(geometry, seed=5)
+        gains = np.zeros(50, dtype=np.int64)
+        losses = np.zeros(50, dtype=np.int64)
+        kernel(lattice.state, lattice.spare, lattice.solid, lattice.mirror, lattice.fluid, lattice.nx, False, 5, 0,
+               0.0, lattice.fluid_nodes, gains, losses)
+        results.append((lattice.state.copy(), losses.copy()))
+    assert np.array_equal(results[0][0], results[1][0]) and np.array_equal(results[0][1], results[1][1])
+
+
+def test_forcing_gain_at_rest():
+    # digest §1.5: at rest equilibrium a chosen node gains 4 d (1 - d) = 24/49 x-momentum on average
+    lattice = Lattice(open_box(200, 640), seed=7)
+    gains = []
+    for _ in range(20):
+        lattice.state[:] = Lattice(open_box(200, 640), seed=len(gains) + 8).state  # fresh equilibrium
+        g, _ = lattice.run(1, 0.05)
+        gains.append(g[0])
+    per_node = 0.5 * np.sum(gains) / (20 * 0.05 * lattice.n_fluid)
+    # ~6,400 events per step: the mean's standard error is ~0.3 %
+    assert per_node == pytest.approx(24 / 49, rel=0.02)
+
+
+# --- C19: the surface generator --------------------------------------------------------------
+
+
+@pytest.mark.parametrize("hurst", [0.3, 0.5, 0.7])
+def test_profile_hurst_exponent(hurst):
+    # C19: 50 profiles of 513 points, the structure function's slope over lags 1-64 gives H within
+    # 0.06 (the digest's own midpoint displacement reads 0.33 / 0.48 / 0.65)
+    profiles = np.array([surfaces.midpoint_displacement(9, hurst, np.random.default_rng(s)) for s in range(50)])
+    assert surfaces.hurst_exponent(profiles) == pytest.approx(hurst, abs=0.06)
+
+
+def test_rough_profile_scaling():
+    h = surfaces.rough_profile(9, 0.5, 77.9, seed=3)
+    assert len(h) == 513 and abs(h.mean()) < 1e-9 and h.max() == pytest.approx(77.9)
+
+
+# --- geometry ---------------------------------------------------------------------------------
+
+
+def test_rough_channel_apertures():
+    # the wall is continuous into the smooth sections, its mean plane is the mean over the whole
+    # periodic length, y_max stands above it, and the mirror sits delta_av/2 above it within a row
+    y_max = 90 * 0.8660254
+    profile = surfaces.midpoint_displacement(9, 0.7, np.random.default_rng(1))
+    geometry = channels.rough_channel(profile, 512, y_max, y_max / 0.741)
+    d = geometry.description
+    assert d["mean_aperture"] / 2 == pytest.approx(y_max / 0.741, abs=0.9)
+    assert channels.relative_aperture(geometry) == pytest.approx(1 / 0.741, rel=0.01)
+    assert geometry.mirror[d["mirror_row"]].all() and not geometry.fluid[0].any()
+    column = geometry.solid.sum(axis=0)  # solid nodes per column (x = i on even rows)
+    for junction in (20, 20 + 512):  # no cliff where the flats meet the profile (a flat at the mean
+        # plane left a step of 51 rows on this surface)
+        assert abs(int(column[junction]) - int(column[junction - 1])) <= 9
+    x, y = node_positions(*geometry.shape)
+    top = np.where(geometry.solid, y, -np.inf).max(axis=0)  # highest solid node per column
+    assert top.max() - d["mean_plane"] == pytest.approx(y_max, abs=1.0)
+
+
+# --- C7, C8: smooth channels (seed 003 §3) ---------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def poiseuille(tmp_path_factory):
+    """The paper's validation channel (600 x 100 rows) through the command line, three drives."""
+    out = tmp_path_factory.mktemp("lga") / "poiseuille"
+    assert lga_main(["poiseuille", "--out", str(out), "--quiet"]) == 0
+    return out, json.loads((out / "summary.json").read_text())
+
+
+def test_poiseuille_run_directory(poiseuille):
+    out, summary = poiseuille
+    assert {"config.toml", "summary.json", "timeseries.csv", "profile.png", "flow_rate.png",
+            "field.vtu"} <= {p.name for p in out.iterdir()}
+    assert summary["status"] == "finished" and len(summary["drives"]) == 3
+    rows = (out / "timeseries.csv").read_text().splitlines()
+    assert rows[0] == "step,drive,flow_rate,force_applied_per_node,force_friction_per_node" and len(rows) > 100
+
+
+def test_poiseuille_profile_is_a_parabola(poiseuille):
+    # C7a: R^2 >= 0.98, u_max/u_mean = 1.5 within 5 %, zeros within a row of the wall rows
+    _, s = poiseuille
+    assert s["profile_r2"] >= 0.98
+    assert s["u_max_over_mean"] == pytest.approx(1.5, rel=0.05)
+    for zero, wall in zip(s["profile_zeros_rows"], s["wall_rows"]):
+        assert abs(zero - wall) <= 1.0
+
+
+def test_poiseuille_forces_balance_and_mach(poiseuille):
+    # C6 in the smooth channel (Table I: <= 1 % typical, 3 % worst); C17: u_max <= 0.30; every
+    # window steady (its halves agree within 1 % or 3 standard errors)
+    _, s = poiseuille
+    assert s["force_mismatch_max"] <= 0.01
+    assert s["u_max"] <= 0.30
+    assert all(d["steady"] for d in s["drives"])
+
+
+@pytest.mark.xfail(strict=True, reason="known model discrepancy, issue 6: the automaton's Poiseuille viscosity "
+                   "at 600 x 100 rows is 0.328 (+6.7 % over Eq. 6's 0.3073; the paper measured 0.30); it grows "
+                   "with the channel width (about 0.31, 0.325, 0.34 at 50, 100, 200 rows), the scale dependence "
+                   "expected of a 2-D lattice gas beyond the Boltzmann approximation (decisions #43)")
+def test_poiseuille_viscosity_matches_eq6(poiseuille):
+    # C7b: nu from the Q-dP slope within 5 % of Eq. 6
+    _, s = poiseuille
+    assert abs(s["viscosity_error"]) <= 0.05
+
+
+@pytest.fixture(scope="module")
+def half_channel(tmp_path_factory):
+    out = tmp_path_factory.mktemp("lga") / "half"
+    assert lga_main(["poiseuille", "--mirror", "--ny", "50", "--out", str(out), "--quiet"]) == 0
+    return json.loads((out / "summary.json").read_text())
+
+
+@pytest.mark.xfail(strict=True, reason="known model discrepancy, issue 6: the 50-row half channel under a mirror "
+                   "reads (delta_H/delta)^3 = 0.91-0.93 with Eq. 6's viscosity, because the automaton's own "
+                   "viscosity is ~7-8 % higher at this size (see the C7b xfail); the full channel of the same "
+                   "width carries the same flow within 0.3 % (decisions #40, #43)")
+def test_half_channel_recovers_cubic_law(half_channel):
+    # C8: the flat half channel with a mirror top gives phi = 1 within 3 %
+    assert all(abs(phi - 1.0) <= 0.03 for phi in half_channel["phi"])
+
+
+def test_half_channel_equals_full_channel(poiseuille, half_channel):
+    # the mirror is a symmetry plane: 50 rows under a mirror (full width 101 rows) carry the flow
+    # of the 100-row full channel scaled by (101/100)^3, i.e. the same viscosity, within 3 %
+    # (C8's tolerance for the wall-position ambiguity)
+    _, full = poiseuille
+    assert half_channel["viscosity_fit"] == pytest.approx(full["viscosity_fit"], rel=0.03)
+
+
+# --- rough channels, reduced size (seed 003 §4.2; the full study is tests/test_lga_full.py) ---
+
+
+@pytest.fixture(scope="module")
+def reduced_study(tmp_path_factory):
+    """H = 0.5, one surface, delta_av/(2 y_max) = 1.35, 1.7, 2.4, with a 256-long rough section
+    and y_max = 45 rows (half the paper's in both directions): ~2 minutes."""
+    out = tmp_path_factory.mktemp("lga") / "permeability"
+    assert lga_main(["permeability", "--hurst", "0.5", "--surfaces", "1", "--nx", "296", "--ny", "45",
+                     "--out", str(out), "--quiet"]) == 0
+    return out, json.loads((out / "summary.json").read_text())
+
+
+def test_reduced_study_run_directory(reduced_study):
+    out, summary = reduced_study
+    assert {"config.toml", "summary.json", "timeseries.csv", "collapse.png", "points.csv"} <= {
+        p.name for p in out.iterdir()}
+    assert len(summary["points"]) == 3 and math.isfinite(summary["alpha"])
+    assert [p["opening"] for p in summary["points"]] == pytest.approx([1.35, 1.7, 2.4], rel=0.01)
+
+
+def test_reduced_forces_balance(reduced_study):
+    # C6: applied force = wall friction, <= 1 % typical and <= 3 % worst (Table I)
+    mismatches = [abs(d["force_mismatch"]) for p in reduced_study[1]["points"] for d in p["drives"]]
+    assert max(mismatches) <= 0.03 and float(np.median(mismatches)) <= 0.01
+    assert all(d["steady"] for p in reduced_study[1]["points"] for d in p["drives"])
+
+
+def test_reduced_permeability_ordering_and_magnitude(reduced_study):
+    # C12: the cubic law with delta_av overpredicts (phi < 0.5 at rel <= 2.5); C13: phi rises with
+    # the opening, phi(2.4)/phi(1.35) in [2, 4]; the issue's bound on C11: within a factor of 2 of
+    # Eq. 11; C17: u_max <= 0.30
+    points = reduced_study[1]["points"]
+    phis = [p["phi"] for p in points]
+    assert all(phi < 0.5 for phi in phis)
+    assert phis[0] < phis[1] < phis[2] and 2.0 <= phis[2] / phis[0] <= 4.0
+    for p in points:
+        assert 0.5 <= p["phi"] / studies.eq11(p["opening"]) <= 2.0
+    assert reduced_study[1]["u_max"] <= 0.30
+
+
+# --- the command line -----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("argv, flag", [
+    (["rough", "--relative-roughness", "1.35"], "--relative-roughness"),
+    (["rough", "--nx", "500"], "--nx"),
+    (["poiseuille", "--density", "8"], "--density"),
+    (["permeability", "--hurst", "1.2"], "--hurst"),
+    (["poiseuille", "--g", "0"], "--g"),
+])
+def test_bad_input_is_one_line(tmp_path, argv, flag):
+    out = tmp_path / "run"
+    proc = subprocess.run(CMD + argv + ["--out", str(out)], capture_output=True, text=True)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and flag in lines[0] and lines[0].startswith("python -m sph_bridge lga")
+    assert not out.exists()
+
+
+def test_ctrl_c_leaves_a_valid_partial_directory(tmp_path):
+    out = tmp_path / "run"
+    proc = subprocess.Popen(CMD + ["poiseuille", "--ny", "200", "--out", str(out)], stderr=subprocess.PIPE,
+                            stdout=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    deadline = time.time() + 60
+    while time.time() < deadline:  # the bar appears once the lattice runs
+        line = proc.stderr.readline()
+        if "steps" in line or proc.poll() is not None:
+            break
+    time.sleep(3.0)
+    proc.send_signal(signal.SIGINT)
+    proc.communicate(timeout=120)
+    assert proc.returncode == 130
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "interrupted"
+    assert (out / "config.toml").exists() and (out / "timeseries.csv").exists()
