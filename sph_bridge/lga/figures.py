@@ -21,9 +21,8 @@ def velocity_profile(path: Path, channel, result: FlowResult, fit: dict, nu_theo
     u = result.row_velocity[rows]
     fig, ax = plt.subplots(figsize=(5.5, 4))
     ax.plot(rows, u, ".", ms=4, label="lattice gas (row means)")
-    coef = np.polyfit(*_mirrored(channel, rows, u), 2)
     y = np.linspace(rows.min() - 1, rows.max() + 1, 200)
-    ax.plot(y, np.polyval(coef, y), "k-", lw=1, label=f"fitted parabola (R² = {fit['profile_r2']:.4f})")
+    ax.plot(y, np.polyval(fit["profile_coefficients"], y), "k-", lw=1, label=f"fitted parabola (R² = {fit['profile_r2']:.4f})")
     f, rho = result.force_applied, result.density
     lo = 0.5
     hi = geometry.shape[0] - 1 - (0.0 if channel.mirrored else 0.5)
@@ -38,13 +37,6 @@ def velocity_profile(path: Path, channel, result: FlowResult, fit: dict, nu_theo
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
-
-
-def _mirrored(channel, rows, u):
-    if not channel.mirrored:
-        return rows, u
-    top = channel.geometry.shape[0] - 1
-    return np.concatenate([rows, 2 * top - rows]), np.concatenate([u, u])
 
 
 def flow_rate_against_force(path: Path, rows: list[dict], title: str) -> None:

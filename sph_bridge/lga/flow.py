@@ -141,7 +141,7 @@ def drive(lattice: Lattice, g: float, spinup: int, average: int, progress=None, 
             row_counts += counts
             row_momentum += momentum
             samples += 1
-            flow_rates.append(_flow_rate(lattice, counts, momentum))
+            flow_rates.append(lattice.flow_rate((int(counts.sum()), int(momentum.sum()))))
             if node_fields is not None and averaged % FIELD_EVERY < n:
                 node_fields.add(lattice)
             record.add(n, gains, losses, flow_rates[-1])
@@ -188,12 +188,6 @@ class _Recorder:
 def precise(flow_rates: list, precision: float) -> bool:
     q = np.asarray(flow_rates)
     return precision <= 0 or (len(q) >= 20 and block_error(q) <= precision * abs(q.mean()))
-
-
-def _flow_rate(lattice: Lattice, counts: np.ndarray, momentum: np.ndarray) -> float:
-    """Q = (sqrt(3)/2) sum(j_x) / (rho_mean L) from one sample's row sums (digest §3.1)."""
-    rho = counts.sum() / lattice.n_fluid
-    return ROW * 0.5 * momentum.sum() / rho / lattice.nx if rho > 0 else math.nan
 
 
 def _result(lattice, g, spinup, averaged, flow_rates, row_counts, row_momentum, samples, node_fields,

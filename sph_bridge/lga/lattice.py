@@ -12,7 +12,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import automaton
-from .rules import viscosity
 
 ROW = math.sqrt(3.0) / 2.0  # row spacing and area per node
 
@@ -107,10 +106,13 @@ class Lattice:
         automaton.row_sums(self.state, mask, counts, momentum)
         return int(counts.sum()), int(momentum.sum())
 
-    def flow_rate(self) -> float:
+    def flow_rate(self, fluid_totals: tuple[int, int] | None = None) -> float:
         """Instantaneous flux across a section, Q = (sqrt(3)/2) sum(j_x) / (rho_mean L) (digest §3.1:
-        mass conservation makes Q the same at every x)."""
-        particles, momentum = self.totals("fluid")
+        mass conservation makes Q the same at every x), from the fluid's (particles, x-momentum in
+        half units) if already summed."""
+        particles, momentum = fluid_totals or self.totals("fluid")
+        if particles <= 0:
+            return math.nan
         return ROW * 0.5 * momentum / (particles / self.n_fluid) / self.nx
 
     def force_per_node(self) -> tuple[float, float]:
@@ -145,12 +147,3 @@ class Fields:
             uy = ROW * self.momentum_y / n / rho
         return rho, ux, uy
 
-
-def mean_occupation(lattice: Lattice) -> float:
-    particles, _ = lattice.totals("fluid")
-    return particles / lattice.n_fluid / 7.0
-
-
-def kinematic_viscosity(lattice: Lattice) -> float:
-    """Eq. 6 at the run's mean fluid density."""
-    return viscosity(7.0 * mean_occupation(lattice))

@@ -142,6 +142,7 @@ def parabola_fit(channel: Channel, result: FlowResult) -> dict:
     r2 = 1.0 - np.sum((u - model) ** 2) / np.sum((u - u.mean()) ** 2)
     zeros = np.sort(np.roots(coef).real)
     return {"profile_r2": float(r2), "profile_zeros_rows": [float(z) for z in zeros],
+            "profile_coefficients": [float(c) for c in coef],
             "wall_rows": [0.0, float(geometry.shape[0] - 1) if not channel.mirrored else float(2 * (geometry.shape[0] - 1))],
             "u_max_over_mean": float(np.max(model) / np.mean(u))}
 
