@@ -311,6 +311,7 @@ def droplet_summary(args, sim, shape, sigma, source, status) -> dict:
                         "puddle_height_error": shape.height / puddle - 1.0,
                         "bond_number": rho * g * (shape.width / 2) ** 2 / sigma})
     summary["final_kinetic_energy_j"] = sim.state_row()[2]
+    summary["near_wall_rms_speed_m_per_s"], summary["upper_rms_speed_m_per_s"] = droplet.rms_speeds(sim)
     summary.update(run_figures(sim))
     return summary
 

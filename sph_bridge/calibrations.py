@@ -22,11 +22,17 @@ class Calibrated:
 
 
 TABLE: dict[tuple[float, float], Calibrated] = {
-    # 3 slab + 3 ridge trials, 1,323 s on 2 cores (2026-11-23)
+    # 3 slab + 3 ridge trials, 1,265 s on one thread (2026-11-23; fluid's own pressure unclamped
+    # at walls, decisions #37: s_sf 7.805e-7 N against 7.800e-7 N with the clamp)
     (5e-4, 65.16): Calibrated(c0=1.5, rho0_fluid=947.3625079573594, s_ff=9.684422412515069e-07,
-                              s_sf=7.799830845237587e-07, surface_tension=0.0721418907396849,
-                              contact_angle_deg=65.90400182549051,
+                              s_sf=7.805148181602049e-07, surface_tension=0.0721418907396849,
+                              contact_angle_deg=65.82919900957322,
                               command="python -m sph_bridge calibrate --dx 5e-4 --theta 65.16"),
+    # 4 slab + 2 ridge trials, 1,225 s on one thread (2026-11-23; fluid's own pressure unclamped at walls)
+    (2e-4, 65.16): Calibrated(c0=2.5, rho0_fluid=952.8763782154906, s_ff=3.9175943575769424e-07,
+                              s_sf=3.0544625421520533e-07, surface_tension=0.07181378860749167,
+                              contact_angle_deg=65.53213384487296,
+                              command="python -m sph_bridge calibrate --dx 2e-4 --theta 65.16"),
 }
 
 

@@ -57,14 +57,18 @@ def pair_force_over_r(i, j, r, h, mass, rho, pressure, fluid, s_ff, s_sf):
     """The conservative part of the force on fluid particle i from j, divided by r_ij [N/m] (a
     vector along r_i - r_j): the pairwise force of Eq. 27, s [8 f(2r/h) - f(r/h)] / r with s = s_ff
     between fluid particles and s_sf with a wall, and the pressure force of Eq. 16 with its
-    sign restored, -m_i m_j (P_i/rho_i^2 + P_j/rho_j^2) (1/r) dW/dr. Fluid-wall pairs take
-    max(P, 0) on both sides: walls only push, adhesion is the pairwise force's (decisions #35)."""
+    sign restored, -m_i m_j (P_i/rho_i^2 + P_j/rho_j^2) (1/r) dW/dr. A wall's extrapolated
+    pressure is taken as max(P_j, 0): the wall's own term only pushes (decisions #35). The fluid
+    particle's own term keeps its sign, as against a fluid neighbour: the wall's mass is in its
+    summation density, and the force must follow that density both ways or it stops being the
+    gradient of the EOS energy; clamping it drove a ~0.1 m/s circulation along the wall
+    (decisions #37)."""
     s = s_ff if fluid[j] else s_sf
     f = s * interaction_shape(r, h) / r if s != 0.0 else 0.0
     if r < h:
         p_i, p_j = pressure[i], pressure[j]
         if not fluid[j]:
-            p_i, p_j = max(p_i, 0.0), max(p_j, 0.0)
+            p_j = max(p_j, 0.0)
         f -= mass[i] * mass[j] * (p_i / (rho[i] * rho[i]) + p_j / (rho[j] * rho[j])) * wendland_gradient_over_r(r, h)
     return f
 
