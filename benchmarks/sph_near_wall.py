@@ -2,11 +2,11 @@
 within 4 dx of the wall and above it, on a zero-gravity ridge of 8 dx radius with the shipped
 calibration and the droplet command's damping, sampled through part of its relaxation.
 
-    .venv/bin/python benchmarks/sph_near_wall.py [--dx 5e-4] [--fraction 0.5] [--samples 8]
+    NUMBA_NUM_THREADS=1 .venv/bin/python benchmarks/sph_near_wall.py [--dx 5e-4] [--theta 65.16] [--fraction 0.5] [--samples 8]
 
 With the fluid's own pressure clamped at walls (before decisions #37) the near-wall rms stayed
-at 0.08-0.10 m/s while the rest decayed to 0.03; a conservative wall force lets both decay
-together (0.006 and 0.009 m/s after half the minimum relaxation at dx = 5e-4 m).
+at 0.08-0.10 m/s while the rest decayed to 0.03-0.04; with the fluid's own term unclamped both
+decay together (0.006 and 0.009 m/s after half the minimum relaxation at dx = 5e-4 m).
 """
 
 from __future__ import annotations
@@ -27,6 +27,8 @@ def main(argv=None) -> None:
     parser.add_argument("--fraction", type=float, default=0.5, help="of the minimum relaxation time")
     parser.add_argument("--samples", type=int, default=8)
     args = parser.parse_args(argv)
+    if not (args.fraction > 0 and args.samples > 0):
+        parser.error("--fraction and --samples must be positive")
     entry = calibrations.lookup(args.dx, args.theta)
     if entry is None:
         parser.error(f"--dx/--theta: no shipped calibration at dx = {args.dx:g} m, {args.theta:g}°")

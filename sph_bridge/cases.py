@@ -38,7 +38,7 @@ def hydrostatic_parameters(dx: float, layers: int, gravity: float) -> tuple[SphP
     """c0 with rho g H = 1 % of rho c0^2 (digest §7 #5 asks <= 3 %), and damping of about twice
     the fundamental acoustic mode pi c0 / (2H); relaxed for 3 of its periods (velocities decay as
     exp(-2 mode t), to e^-38). The column is closed: a background pressure P0 of its own head
-    rho g H keeps it in compression up to the top wall, which can only push (decisions #35).
+    rho g H keeps it in compression up to the top wall, whose own pressure term only pushes (decisions #35).
     Returns the parameters and the end time."""
     height = layers * dx
     c0 = math.sqrt(gravity * height / 0.01)

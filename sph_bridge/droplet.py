@@ -207,13 +207,13 @@ def measure(sim: Simulation, ridge: bool = False) -> DropShape:
     return DropShape(height, width, cap_angle, math.degrees(math.acos(cos_theta)), radius, float(c[-1]), rms)
 
 
-NEAR_WALL_LAYERS = 4  # the layers where a clamped wall pressure once drove a circulation (decisions #37)
+NEAR_WALL_LAYERS = 4  # where clamping the fluid's own pressure at walls drove a circulation (decisions #37)
 
 
 def rms_speeds(sim: Simulation) -> tuple[float, float]:
     """rms speed [m/s] of the fluid within :data:`NEAR_WALL_LAYERS` dx of the wall (z = 0) and of
     the fluid above: a drop relaxing under damping has no reason to move more at the wall than
-    above it unless a wall force is not conservative (decisions #37)."""
+    above it unless a wall force does net work around closed paths (decisions #37)."""
     f = sim.fluid
     speed2 = (sim.vel[f] ** 2).sum(axis=1)
     near = sim.pos[f, 2] < NEAR_WALL_LAYERS * sim.params.dx
@@ -246,8 +246,9 @@ def relax(sim: Simulation, t_min: float, ridge: bool = False, progress=None, on_
     mean height over the last quarter of that time has moved by less than :data:`SETTLED` from
     the quarter before (a puddle spreads for longer than a cap), at most :data:`MAX_EXTENSION`
     ``t_min``. Returns the mean shape over the last quarter (a snapshot still carries the
-    relaxation's leftover motion), whether it settled, and appends (t, kinetic energy, height, width, angle) per sample
-    to ``rows`` (an interrupted run keeps them). ``on_sample(sim, k)`` is called after sample k."""
+    relaxation's leftover motion), whether it settled, and appends (t, kinetic energy, height,
+    width, angle) per sample to ``rows`` (an interrupted run keeps them). ``on_sample(sim, k)``
+    is called after sample k."""
     rows = [] if rows is None else rows
     shapes, window = [], SAMPLES // 4
     interval = t_min / SAMPLES

@@ -54,7 +54,7 @@ def density_from_pressure(p: np.ndarray, rho0: np.ndarray, c0: float, p0: float 
 
 @njit(inline="always")
 def pair_force_over_r(i, j, r, h, mass, rho, pressure, fluid, s_ff, s_sf):
-    """The conservative part of the force on fluid particle i from j, divided by r_ij [N/m] (a
+    """The non-viscous part of the force on fluid particle i from j, divided by r_ij [N/m] (a
     vector along r_i - r_j): the pairwise force of Eq. 27, s [8 f(2r/h) - f(r/h)] / r with s = s_ff
     between fluid particles and s_sf with a wall, and the pressure force of Eq. 16 with its
     sign restored, -m_i m_j (P_i/rho_i^2 + P_j/rho_j^2) (1/r) dW/dr. A wall's extrapolated
