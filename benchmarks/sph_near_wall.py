@@ -34,7 +34,7 @@ def main(argv=None) -> None:
         parser.error(f"--dx/--theta: no shipped calibration at dx = {args.dx:g} m, {args.theta:g}°")
     params = replace(SphParameters(dx=args.dx, c0=entry.c0, rho0_fluid=entry.rho0_fluid, s_ff=entry.s_ff,
                                    s_sf=entry.s_sf), gravity=(0.0, 0.0, 0.0))
-    volume = 0.5 * math.pi * (8 * args.dx) ** 2 * droplet.RIDGE_LENGTH * args.dx
+    volume = droplet.ridge_volume(8, args.dx)
     sim, t_min = droplet.prepare_drop(params, volume, entry.surface_tension, ridge=True)
     print(f"{int(sim.fluid.sum())} fluid + {int((~sim.fluid).sum())} wall particles, minimum relaxation "
           f"{t_min:.3f} s, damping {sim.params.damping:.1f} 1/s")

@@ -86,8 +86,7 @@ def zero_gravity_drop(params: SphParameters, surface_tension: float, progress=No
     cylinder of :data:`DROP_RADIUS_CELLS` dx radius at zero gravity, and the steps taken. A
     ridge's contact line is straight: its angle is Young's, while a round drop this small
     (~7 dx tall) stands ~10° steeper at dx = 5e-4 m (decisions #39)."""
-    radius = DROP_RADIUS_CELLS * params.dx
-    volume = 0.5 * math.pi * radius**2 * droplet.RIDGE_LENGTH * params.dx
+    volume = droplet.ridge_volume(DROP_RADIUS_CELLS, params.dx)
     sim, t_min = droplet.prepare_drop(replace(params, gravity=(0.0, 0.0, 0.0)), volume, surface_tension, ridge=True)
     shape, _ = droplet.relax(sim, t_min, ridge=True, progress=progress)
     return shape, sim.record.steps

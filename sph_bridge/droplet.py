@@ -67,6 +67,11 @@ def cap_aspect(theta_deg: float) -> float:
 RIDGE_LENGTH = 18  # periodic length of a ridge in dx: 5 kernel supports (h = 3.42 dx), the pairwise reach each side
 
 
+def ridge_volume(radius_cells: float, dx: float) -> float:
+    """Volume of a half-cylinder ridge of ``radius_cells`` dx over its periodic length."""
+    return 0.5 * math.pi * (radius_cells * dx) ** 2 * RIDGE_LENGTH * dx
+
+
 def starting_drop(volume: float, dx: float, max_height: float, ridge: bool) -> np.ndarray:
     """Lattice sites (cells of dx^3 resting on z = 0) of the starting drop holding ``volume``: a
     hemisphere centred on the z axis (a ridge: a half cylinder along y over its periodic length

@@ -123,7 +123,7 @@ def small_ridge(request, tmp_path_factory):
     calibration's (8 against 10 dx), a ridge because the calibration reads its angle on one
     (decisions #39)."""
     dx = request.param
-    volume = 0.5 * math.pi * (8 * dx) ** 2 * droplet.RIDGE_LENGTH * dx
+    volume = droplet.ridge_volume(8, dx)
     out, s = run_droplet(tmp_path_factory.mktemp("cap"), "cap", "--dx", str(dx), "--gravity", "0", "--ridge",
                          "--volume", str(volume))
     return dx, out, s
