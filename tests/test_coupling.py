@@ -158,6 +158,49 @@ def test_quasi_newton_reuses_the_secants_of_earlier_steps_of_the_same_dt():
     assert other_dt >= first - 2
 
 
+def test_quasi_newton_drops_reused_secants_that_make_the_residual_grow():
+    """Pairs reused from steps where one mode was unstable (gain -3, a loosely held grain) send
+    the first update of a step where that mode has become contracting (the grain is held again)
+    far off, as in Huang A1 at paper size (decisions #23). Once the residual has grown above the
+    step's best, the update must be the one built from this step's own pairs alone."""
+    from hmdem.coupling.quasi_newton import InterfaceQuasiNewton
+
+    rng = np.random.default_rng(0)
+    n = 50
+
+    def contracting():
+        return np.diag(rng.uniform(-0.01, 0.01, n)) + 0.001 * rng.normal(size=(n, n))
+
+    loose, held = contracting(), contracting()
+    loose[0, 0], loose[1, 1] = -3.0, -2.0
+    qn = InterfaceQuasiNewton()
+    for b in (rng.normal(size=n), rng.normal(size=n)):
+        qn.new_step(1e-6)
+        x = np.zeros(n)
+        while np.abs(loose @ x + b - x).max() > 1e-9:
+            x = qn.update(x, loose @ x + b)
+    grown_steps = 0
+    for _ in range(2):  # two steps with the grain held again (the second one's first update goes off)
+        b = rng.normal(size=n)
+        fresh = InterfaceQuasiNewton()  # sees only this step's iterates
+        for q in (qn, fresh):
+            q.new_step(1e-6)
+        x, residuals, grown = np.zeros(n), [], False
+        for _ in range(30):
+            h = held @ x + b
+            residuals.append(np.abs(h - x).max())
+            if residuals[-1] < 1e-9:
+                break
+            grown = grown or residuals[-1] > min(residuals)
+            reused_update, own_update = qn.update(x, h), fresh.update(x, h)
+            if grown:
+                np.testing.assert_allclose(reused_update, own_update, rtol=0, atol=1e-12)
+            x = reused_update
+        assert residuals[-1] < 1e-9
+        grown_steps += grown
+    assert grown_steps > 0  # the reused pairs did send a step off (the case this guards)
+
+
 def test_radial_scenario_fixes_every_boundary_grain():
     # digest §11.2: "all boundary grains are fixed". Every grain of a contact on the outer face
     # of the contact graph, plus the compaction's wall ring; interior grains stay free

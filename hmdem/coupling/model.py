@@ -179,12 +179,20 @@ class CoupledFlowModel(FlowModel):
         gap = contact_gaps(self.positions, self.grains.radii, g)
         self.net.pipe_aperture[:] = self.coupling.aperture_law(force, gap)
         self.detached |= self.initially_closed & self.coupling.aperture_law.opened(force)
-        self.max_gap = np.maximum(self.max_gap, np.where(force > 0.0, -np.inf, gap))
+        self.gap = np.where(force > 0.0, -np.inf, gap)  # separation of the detached contacts now
+        self.max_gap = np.maximum(self.max_gap, self.gap)
 
     @property
     def opened(self) -> np.ndarray:
         """Initially closed contacts that have separated by more than :attr:`opening_gap`."""
         return self.detached & (self.max_gap > self.opening_gap)
+
+    @property
+    def open_now(self) -> np.ndarray:
+        """Opened contacts still separated by more than :attr:`opening_gap` (the fracture map of a
+        snapshot, as the paper's Fig. 13 shows it at breakthrough; :attr:`opened` also keeps
+        those that have closed again)."""
+        return self.opened & (self.gap > self.opening_gap)
 
     # ---- flow step with the P-V iteration --------------------------------------------------
     def implicit_step(self, state, blocked_guess):

@@ -41,6 +41,7 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
         "fractal_dimension": d_f,
         "fractal_dimension_box_counting": d_box,
         "n_opened_contacts": int(opened.sum()),
+        "n_open_contacts_at_end": int(model.open_now.sum()),
         "n_detached_contacts": int(model.detached.sum()),
         "opening_gap_m": model.opening_gap,
         "n_floored_domains": int(model.floored.sum()),
@@ -64,7 +65,8 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
     }
 
     def files(tmp: Path) -> None:
-        np.savez_compressed(tmp / "fractures.npz", opened=opened, detached=model.detached, max_gap=model.max_gap,
+        np.savez_compressed(tmp / "fractures.npz", opened=opened, open_at_end=model.open_now, detached=model.detached,
+                            max_gap=model.max_gap,
                             pipe_grains=g, gap=gap,
                             aperture=net.pipe_aperture, initially_closed=model.initially_closed,
                             positions=positions, initial_positions=initial_positions, radii=grains.radii,

@@ -9,7 +9,12 @@ builds a least-squares model of the inverse Jacobian of the residual r = H(x) - 
 secant pairs (differences of successive residuals and outputs), which captures those few
 unstable modes. The pairs of the last ``reuse_steps`` flow steps taken with the same dt are
 kept (IQN-ILS(q)): the Jacobian changes little from step to step, so most steps then start with
-a quasi-Newton update instead of a relaxed substitution.
+a quasi-Newton update instead of a relaxed substitution. When an update built on reused pairs
+makes the residual larger than the step's best so far, those pairs describe a response the
+grains no longer have (a contact made or lost since): they are dropped, and the step goes on
+with its own pairs only. Seen in Huang A1 at paper size: at a failed step the map was strongly
+contracting (1 kPa on the worst domain moved its computed pressure by 5 Pa), yet the first
+update from reused pairs sent the residual from 52 to 7,553 times the tolerance.
 """
 
 from __future__ import annotations
@@ -32,6 +37,8 @@ class InterfaceQuasiNewton:
         self._last = None  # (r, h) of the previous iterate of this step
         self._dr: list[np.ndarray] = []
         self._dh: list[np.ndarray] = []
+        self._best = np.inf  # smallest residual norm of this step
+        self._reused = False  # the last update used pairs of earlier steps
 
     def new_step(self, dt: float | None = None) -> None:
         """Archive this step's secant pairs and start a step at ``dt`` (pairs are reused only
@@ -39,22 +46,31 @@ class InterfaceQuasiNewton:
         if self._dr:
             self._archive.append((self._dt, self._dr, self._dh))
         self._dt, self._last, self._dr, self._dh = dt, None, [], []
+        self._best, self._reused = np.inf, False
 
     def _columns(self):
-        dr, dh = self._dr[::-1], self._dh[::-1]  # newest first: they survive the filter
+        """Secant pairs, newest first (they survive the filter), and whether earlier steps' are among them."""
+        dr, dh = self._dr[::-1], self._dh[::-1]
+        reused = False
         for dt, old_dr, old_dh in reversed(self._archive):
             if dt is not None and self._dt is not None and abs(dt - self._dt) <= 1e-9 * self._dt:
-                dr, dh = dr + old_dr[::-1], dh + old_dh[::-1]
-        return dr[: self.max_columns], dh[: self.max_columns]
+                dr, dh, reused = dr + old_dr[::-1], dh + old_dh[::-1], True
+        # no more columns than unknowns: beyond that they cannot be independent
+        keep = min(self.max_columns, len(dr[0])) if dr else 0
+        return dr[:keep], dh[:keep], reused and len(self._dr) < keep
 
     def update(self, x: np.ndarray, h: np.ndarray) -> np.ndarray:
         """Next input after evaluating H(x) = h."""
         r = h - x
+        norm = float(np.linalg.norm(r))
+        if self._reused and norm > self._best:
+            self._archive.clear()  # stale: see the module docstring
+        self._best = min(self._best, norm)
         if self._last is not None:
             self._dr.append(r - self._last[0])
             self._dh.append(h - self._last[1])
         self._last = (r, h)
-        dr, dh = self._columns()
+        dr, dh, self._reused = self._columns()
         if not dr:
             return x + self.first_relaxation * r
         v, w = np.column_stack(dr), np.column_stack(dh)
