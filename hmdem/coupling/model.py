@@ -179,8 +179,8 @@ class CoupledFlowModel(FlowModel):
         gap = contact_gaps(self.positions, self.grains.radii, g)
         self.net.pipe_aperture[:] = self.coupling.aperture_law(force, gap)
         self.detached |= self.initially_closed & self.coupling.aperture_law.opened(force)
-        self.gap = np.where(force > 0.0, -np.inf, gap)  # separation of the detached contacts now
-        self.max_gap = np.maximum(self.max_gap, self.gap)
+        self.detached_gap = np.where(force > 0.0, -np.inf, gap)  # now; -inf where in compression
+        self.max_gap = np.maximum(self.max_gap, self.detached_gap)
 
     @property
     def opened(self) -> np.ndarray:
@@ -192,7 +192,7 @@ class CoupledFlowModel(FlowModel):
         """Opened contacts still separated by more than :attr:`opening_gap` (the fracture map of a
         snapshot, as the paper's Fig. 13 shows it at breakthrough; :attr:`opened` also keeps
         those that have closed again)."""
-        return self.opened & (self.gap > self.opening_gap)
+        return self.opened & (self.detached_gap > self.opening_gap)
 
     # ---- flow step with the P-V iteration --------------------------------------------------
     def implicit_step(self, state, blocked_guess):
