@@ -217,10 +217,17 @@ def test_reduced_b3_step_halving_rescues_a_capped_iteration(small_sample):
     sc = build_radial_scenario(RADIAL_CASES["B3"], packing=small_sample)
     sc.coupling.pv_max_iter = 4
     model = CoupledFlowModel(sc.net, sc.setup, start_grains(sc), sc.coupling)
+    model.pv_log = []
     state, rec = model.run()
     assert rec.status == "breakthrough"
     assert model.coupling_record.dt_halvings > 0
     assert model.coupling_record.unconverged_steps == 0
+    # the P-V log sees every attempt (accepted steps and halved ones) and every evaluation: each
+    # accepted attempt ends at its one evaluation within tolerance, failed ones never get there
+    log = model.pv_log
+    assert sum(a.iteration == 1 for a in log) == rec.steps + model.coupling_record.dt_halvings
+    assert sum(a.mismatch_over_tolerance <= 1.0 for a in log) == rec.steps
+    assert max(a.iteration for a in log) == 4
     assert rec.max_mass_balance_error < 1e-10
     assert rec.run_mass_balance_error(sc.setup.rate, state.t) < 1e-10
 

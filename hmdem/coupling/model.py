@@ -93,6 +93,20 @@ class CouplingSetup:
     pv_predictor: bool = True
 
 
+@dataclass(frozen=True)
+class PVEvaluation:
+    """One P-V evaluation: the step's start time and dt, the iteration within the attempt, the
+    largest mismatch over its tolerance, the domain where it sits, whether the update that
+    produced this p_trial used secant pairs of earlier steps."""
+
+    t: float
+    dt: float
+    iteration: int
+    mismatch_over_tolerance: float
+    worst_domain: int
+    reused_pairs: bool
+
+
 @dataclass
 class CouplingRecord:
     pv_iterations: list = field(default_factory=list)
@@ -132,6 +146,8 @@ class CoupledFlowModel(FlowModel):
         self.detached = np.zeros(net.n_pipes, bool)  # F <= 0 at some accepted step (literal Eq. 14)
         self.max_gap = np.full(net.n_pipes, -np.inf)
         self.volume_rate = np.zeros(net.n_domains)  # dV/dt of the last accepted step
+        # a list to append a PVEvaluation to at every P-V evaluation (benchmarks/huang_pv_log.py); None: off
+        self.pv_log: list | None = None
         self._predicting = False  # front-logic solves use dV = volume_rate x dt
         self._update_apertures()
 
@@ -267,7 +283,12 @@ class CoupledFlowModel(FlowModel):
                                          f"(step {self.record.steps + 1}, iteration {iteration}): pressure "
                                          f"mismatch {mismatch.max():.3g} Pa")
             sol = calc
-            if np.all(mismatch <= c.pv_rtol * np.abs(calc.pressure).max() + c.pv_atol):
+            tolerance = c.pv_rtol * np.abs(calc.pressure).max() + c.pv_atol
+            if self.pv_log is not None:
+                worst = int(np.argmax(mismatch))
+                self.pv_log.append(PVEvaluation(state.t, dt, iteration, float(mismatch[worst] / tolerance), worst,
+                                             self.quasi_newton.reused))
+            if np.all(mismatch <= tolerance):
                 return sol, fill, dt, limiter, iteration, True
             if iteration == c.pv_max_iter:
                 break

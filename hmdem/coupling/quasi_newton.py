@@ -40,6 +40,11 @@ class InterfaceQuasiNewton:
         self._best = np.inf  # smallest residual norm of this step
         self._reused = False  # the last update used pairs of earlier steps
 
+    @property
+    def reused(self) -> bool:
+        """The last update used secant pairs of earlier steps."""
+        return self._reused
+
     def new_step(self, dt: float | None = None) -> None:
         """Archive this step's secant pairs and start a step at ``dt`` (pairs are reused only
         between steps of the same dt: the map's Jacobian depends on dt)."""

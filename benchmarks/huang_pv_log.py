@@ -1,0 +1,123 @@
+"""Where the P-V iteration of a Huang case spends its evaluations (issue 3 diagnosis).
+
+    .venv/bin/python benchmarks/huang_pv_log.py save --case A1 --until 0.0225 --checkpoint runs/a1_ckpt
+    .venv/bin/python benchmarks/huang_pv_log.py log --checkpoint runs/a1_ckpt --steps 200 --csv runs/a1_pv.csv
+
+``save`` runs a paper-size case to t = --until and keeps the YADE scene (``O.save``) and the
+pickled flow model and state, so that a late stretch of a run (A1 crawls from t ~ 0.023 s, ~45
+minutes in) can be studied again in minutes. ``log`` resumes the checkpoint for --steps flow
+steps with ``CoupledFlowModel.pv_log`` on, writes every P-V evaluation to CSV and prints which
+domains hold the largest mismatch. A resumed run repeats a straight one to the printed digits
+(checked on the reduced A1). This is a diagnostic: the checkpoint format is this script's own.
+"""
+import argparse
+import collections
+import csv
+import pickle
+import sys
+import time
+from dataclasses import asdict, fields
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from hmdem.coupling.model import CoupledFlowModel, PVEvaluation  # noqa: E402
+from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, start_grains  # noqa: E402
+from hmdem.dem.assembly import DiscAssembly  # noqa: E402
+
+GRAIN_FIELDS = ("radii", "ids", "fixed", "k_n", "k_s", "_index")
+
+
+def save(case: str, until: float, checkpoint: Path) -> None:
+    sc = build_radial_scenario(RADIAL_CASES[case])
+    grains = start_grains(sc)
+    model = CoupledFlowModel(sc.net, sc.setup, grains, sc.coupling)
+    sc.setup.t_max = until
+    start = time.perf_counter()
+    state, rec = model.run()
+    print(f"{case}: {rec.status} at t = {state.t:.6g} s, {rec.steps} steps, {time.perf_counter() - start:.0f} s")
+    checkpoint.mkdir(parents=True, exist_ok=True)
+    grains._O.save(str(checkpoint / "scene.yade.gz"))
+    model.grains = None  # the YADE scene is saved above, not pickled
+    with open(checkpoint / "model.pkl", "wb") as f:
+        pickle.dump({"model": model, "state": state, "grains": {k: getattr(grains, k) for k in GRAIN_FIELDS}}, f)
+
+
+def resume(checkpoint: Path):
+    from hmdem.yade_env import import_yade
+
+    import_yade()
+    from yade import O
+
+    O.load(str(checkpoint / "scene.yade.gz"))
+    with open(checkpoint / "model.pkl", "rb") as f:
+        data = pickle.load(f)
+    grains = object.__new__(DiscAssembly)
+    grains._O = O
+    for key, value in data["grains"].items():
+        setattr(grains, key, value)
+    model = data["model"]
+    model.grains = grains
+    return model, data["state"]
+
+
+def trapped_pockets(model, state) -> np.ndarray:
+    """Partially filled domains whose every neighbour is invaded: defending fluid enclosed by liquid."""
+    net = model.net
+    inner = (net.pipe_domains >= 0).all(axis=1)  # -1: a pipe with one side outside the sample
+    a, b = net.pipe_domains[inner, 0], net.pipe_domains[inner, 1]
+    n = net.n_domains
+    dry_neighbours = np.bincount(a, ~state.invaded[b], n) + np.bincount(b, ~state.invaded[a], n)
+    return ~state.invaded & (state.saturation > 0) & (dry_neighbours == 0)
+
+
+def log(checkpoint: Path, steps: int, out_csv: Path) -> None:
+    model, state = resume(checkpoint)
+    model.pv_log = []
+    pockets = trapped_pockets(model, state)
+    t0 = state.t
+    model.setup.t_max = np.inf
+    model.setup.max_steps = steps
+    start = time.perf_counter()
+    state, rec = model.run(state)
+    attempts = model.pv_log
+    with open(out_csv, "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow([fl.name for fl in fields(PVEvaluation)])
+        writer.writerows(asdict(a).values() for a in attempts)
+    print(f"t {t0:.6g} -> {state.t:.6g} s: {rec.steps} steps, {len(attempts)} evaluations, "
+          f"{model.coupling_record.dt_halvings} halvings, {time.perf_counter() - start:.0f} s")
+    unconverged = [a for a in attempts if a.mismatch_over_tolerance > 1.0]
+    worst = collections.Counter(a.worst_domain for a in unconverged)
+    print(f"{len(unconverged)} evaluations above tolerance; the domains holding the largest mismatch:")
+    for domain, count in worst.most_common(6):
+        kind = "trapped pocket" if pockets[domain] else ("invaded" if state.invaded[domain] else "front")
+        print(f"  domain {domain}: {count} ({count / len(unconverged):.0%}), {kind}, saturation "
+              f"{state.saturation[domain]:.2f}, p {state.pressure[domain]:.0f} Pa, mixture modulus "
+              f"{model.fluids.mixture_bulk_modulus(state.saturation[domain:domain + 1])[0] / 1e6:.0f} MPa")
+    share = sum(c for d, c in worst.items() if pockets[d]) / max(len(unconverged), 1)
+    print(f"trapped pockets at the start: {int(pockets.sum())}; their share of the worst mismatches: {share:.0%}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    s = sub.add_parser("save")
+    s.add_argument("--case", choices=sorted(RADIAL_CASES), default="A1")
+    s.add_argument("--until", type=float, required=True, help="simulated time of the checkpoint [s]")
+    s.add_argument("--checkpoint", type=Path, required=True)
+    g = sub.add_parser("log")
+    g.add_argument("--checkpoint", type=Path, required=True)
+    g.add_argument("--steps", type=int, default=200)
+    g.add_argument("--csv", type=Path, required=True)
+    args = parser.parse_args()
+    if args.command == "save":
+        save(args.case, args.until, args.checkpoint)
+    else:
+        log(args.checkpoint, args.steps, args.csv)
+
+
+if __name__ == "__main__":
+    main()
