@@ -65,10 +65,7 @@ def resume(checkpoint: Path):
 
 def trapped_pockets(model, state) -> np.ndarray:
     """Partially filled domains whose every neighbour is invaded: defending fluid enclosed by liquid."""
-    net = model.net
-    inner = (net.pipe_domains >= 0).all(axis=1)  # -1: a pipe with one side outside the sample
-    a, b = net.pipe_domains[inner, 0], net.pipe_domains[inner, 1]
-    n = net.n_domains
+    a, b, n = model.pipe_a, model.pipe_b, model.net.n_domains  # the flowing pipes' two domains
     dry_neighbours = np.bincount(a, ~state.invaded[b], n) + np.bincount(b, ~state.invaded[a], n)
     return ~state.invaded & (state.saturation > 0) & (dry_neighbours == 0)
 
