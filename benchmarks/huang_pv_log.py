@@ -24,6 +24,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from hmdem.coupling.model import CoupledFlowModel, PVEvaluation  # noqa: E402
+from hmdem.coupling.pockets import trapped_pockets  # noqa: E402
 from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, start_grains  # noqa: E402
 from hmdem.dem.assembly import DiscAssembly  # noqa: E402
 
@@ -63,18 +64,13 @@ def resume(checkpoint: Path):
     return model, data["state"]
 
 
-def trapped_pockets(model, state) -> np.ndarray:
-    """Partially filled domains whose every neighbour is invaded: defending fluid enclosed by liquid."""
-    a, b, n = model.pipe_a, model.pipe_b, model.net.n_domains  # the flowing pipes' two domains
-    dry_neighbours = np.bincount(a, ~state.invaded[b], n) + np.bincount(b, ~state.invaded[a], n)
-    return ~state.invaded & (state.saturation > 0) & (dry_neighbours == 0)
-
-
-def log(checkpoint: Path, steps: int, out_csv: Path) -> None:
+def log(checkpoint: Path, steps: int, out_csv: Path, pocket_newton: bool = True) -> None:
     model, state = resume(checkpoint)
+    model.coupling.pv_pocket_newton = pocket_newton
     model.pv_log = []
-    pockets = trapped_pockets(model, state)
-    t0 = state.t
+    pockets = np.zeros(model.net.n_domains, bool)
+    pockets[trapped_pockets(state.invaded, state.saturation, model.pipe_a, model.pipe_b)] = True
+    t0, halvings0 = state.t, model.coupling_record.dt_halvings  # the record is cumulative: pickled with the run
     model.setup.t_max = np.inf
     model.setup.max_steps = steps
     start = time.perf_counter()
@@ -85,7 +81,7 @@ def log(checkpoint: Path, steps: int, out_csv: Path) -> None:
         writer.writerow([fl.name for fl in fields(PVEvaluation)])
         writer.writerows(asdict(a).values() for a in attempts)
     print(f"t {t0:.6g} -> {state.t:.6g} s: {rec.steps} steps, {len(attempts)} evaluations, "
-          f"{model.coupling_record.dt_halvings} halvings, {time.perf_counter() - start:.0f} s")
+          f"{model.coupling_record.dt_halvings - halvings0} halvings, {time.perf_counter() - start:.0f} s")
     unconverged = [a for a in attempts if a.mismatch_over_tolerance > 1.0]
     worst = collections.Counter(a.worst_domain for a in unconverged)
     print(f"{len(unconverged)} evaluations above tolerance; the domains holding the largest mismatch:")
@@ -109,11 +105,13 @@ def main() -> None:
     g.add_argument("--checkpoint", type=Path, required=True)
     g.add_argument("--steps", type=int, default=200)
     g.add_argument("--csv", type=Path, required=True)
+    g.add_argument("--no-pocket-newton", action="store_true",
+                   help="leave the trapped pockets to IQN alone (CouplingSetup.pv_pocket_newton = False)")
     args = parser.parse_args()
     if args.command == "save":
         save(args.case, args.until, args.checkpoint)
     else:
-        log(args.checkpoint, args.steps, args.csv)
+        log(args.checkpoint, args.steps, args.csv, not args.no_pocket_newton)
 
 
 if __name__ == "__main__":

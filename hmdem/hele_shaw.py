@@ -66,6 +66,9 @@ def build_parser() -> argparse.ArgumentParser:
     rad.add_argument("--pv-max-iter", type=positive_number, help="P-V iteration cap per attempt (default 12)")
     rad.add_argument("--pv-grow-after", type=positive_number,
                      help="easy steps in a row before a halved flow-step cap doubles back (default 1)")
+    rad.add_argument("--no-pocket-newton", action="store_true",
+                     help="leave trapped pockets to the quasi-Newton update alone (default: a scalar Newton "
+                          "step on each, hmdem/coupling/pockets.py)")
     pv = rad.add_mutually_exclusive_group()
     pv.add_argument("--pv-rewind", action="store_true",
                     help="rewind the DEM to t^n before each P-V iteration, quasi-Newton update (default)")
@@ -202,6 +205,7 @@ def run_radial(args) -> int:
     if args.pv_grow_after is not None:
         sc.coupling.pv_easy_steps_to_grow = int(args.pv_grow_after)
     sc.coupling.pv_rewind = not args.pv_continue
+    sc.coupling.pv_pocket_newton = not args.no_pocket_newton
     if args.t_max is not None:
         sc.setup.t_max = args.t_max
     if args.max_steps is not None:

@@ -152,7 +152,7 @@ def test_radial_run_directory_contract(tmp_path):
             "pressure.png", "domains.vtu", "fractures.npz", "force_chains.png"} <= names
     summary = json.loads((out / "summary.json").read_text())
     for key in ("n_opened_contacts", "peak_injection_pressure_pa", "regime", "mean_pv_iterations", "dem_cycles",
-                "lowest_path_resistance_gpa_s_per_m2", "dissipated_fraction"):
+                "lowest_path_resistance_gpa_s_per_m2", "dissipated_fraction", "pv_pocket_attempts"):
         assert key in summary
     # Huang's three regimes; a run stopped before its pattern reaches two grain sizes has no
     # D_f, and with contacts opened it is "undetermined" rather than called fingered
@@ -166,6 +166,7 @@ def test_radial_run_directory_contract(tmp_path):
     assert fractures["positions"].shape == (1395, 2)
     config = tomllib.loads((out / "config.toml").read_text())
     assert config["coupling"]["one_way"] is False and config["aperture_law"]["residual_aperture"] == 7.53e-6
+    assert config["coupling"]["pv_pocket_newton"] is True  # --no-pocket-newton turns it off
 
 
 def test_pressure_beyond_the_constant_bulk_modulus_range_is_flagged(tmp_path, capsys):

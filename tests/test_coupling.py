@@ -226,3 +226,53 @@ def test_radial_injection_rate_from_the_papers_inlet_perimeter():
     assert 2e-5 <= rate["A1"] <= 4e-5  # digest §10.3: 3 (+-1) e-5 from the paper's A1 pressure and time
     assert rate["A3"] / rate["A1"] == pytest.approx(32.3 / 1.6, rel=1e-12)
     assert rate["B1"] == pytest.approx(rate["A1"], rel=0.002)  # 56.3 / 1.6 = 35.19 vs 176 / 5 = 35.2
+
+
+def test_trapped_pockets_are_the_partly_filled_domains_enclosed_by_invaded_ones():
+    from hmdem.coupling.pockets import trapped_pockets
+
+    # chain 0-1-2-3-4: 1 and 3 are partly filled and not invaded; only 1 has invaded neighbours only
+    a, b = np.array([0, 1, 2, 3]), np.array([1, 2, 3, 4])
+    invaded = np.array([True, False, True, False, False])
+    saturation = np.array([1.0, 0.4, 1.0, 0.3, 0.0])
+    assert trapped_pockets(invaded, saturation, a, b).tolist() == [1]
+
+
+def _pocket_map(x, neighbour, gain):
+    """A trapped pocket's P-V map as A1 shows it (BENCHMARKS.md): closed, its computed pressure
+    changes by ``gain`` Pa per Pa of y = p - p_neighbour (A1: -3 to -8); below the neighbour's
+    pressure plus the entry pressure (33.5 kPa) liquid enters and holds it there:
+    p_calc = max(c, f(y))."""
+    c = neighbour + 33_500.0
+    f = 11_900.0 + gain * (x - neighbour - 33_500.0)
+    return max(c, f), f > c
+
+
+@pytest.mark.parametrize("gain, first_step", [(-5.0, 4), (-0.5, 3), (-20.0, 6), (-60.0, 7)])
+def test_pocket_newton_finds_the_root_of_a_kinked_pocket_map(gain, first_step):
+    """Started at 11,700 Pa, on the open branch for gain -5 (p_calc = c carries no gain
+    information; plain substitution then alternates between 11,500 and 11,900 Pa forever).
+    Gain -5: 11,700 -> 11,500 (substitution; closed, 400 Pa residual) -> 11,544.4 (Newton at
+    the default gain -8) -> the learned gain lands on the root. Gains steeper than the default
+    overshoot onto the open branch and need the bracket's bisection. Each must reach the root
+    x = (11,900 - 11,500 g) / (1 - g) to 1e-6 Pa, and a second flow step must start from the
+    learned gain: one Newton step, exact on a line, and the evaluation that confirms it."""
+    from hmdem.coupling.pockets import PocketNewton
+
+    neighbour = -22_000.0
+    exact = (11_900.0 - 11_500.0 * gain) / (1.0 - gain)
+    solver = PocketNewton(2, np.array([0]), np.array([1]))
+    evaluations = []
+    for start in (11_700.0, 11_400.0):  # two flow steps
+        solver.new_step(np.array([0]))
+        x = np.array([start, neighbour])
+        for n in range(1, 20):
+            h0, closed = _pocket_map(x[0], neighbour, gain)
+            if abs(h0 - x[0]) < 1e-6:
+                break
+            h = np.array([h0, neighbour])
+            x = np.array([solver.update(x, h, h.copy(), np.array([closed]))[0], neighbour])
+        evaluations.append(n)
+        assert x[0] == pytest.approx(exact, abs=1e-5)
+    assert solver.gain[0] == pytest.approx(gain, rel=1e-9)
+    assert evaluations == [first_step, 2]

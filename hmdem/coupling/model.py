@@ -11,7 +11,8 @@ predictor; decisions.md #18): that gives p_trial. Then, at that dt:
 2. dV_i = V_i(grains now) - V_i^n enters the pressure equation as -dV/dt and it is re-solved,
    giving p_calc;
 3. until |p_calc - p_trial| <= rtol max|p| + atol in every domain (the paper tests the inflow
-   domain only), p_trial is updated by interface quasi-Newton (IQN-ILS, quasi_newton.py).
+   domain only), p_trial is updated by interface quasi-Newton (IQN-ILS, quasi_newton.py),
+   followed by a scalar Newton step on each trapped pocket (pockets.py).
    A step that does not converge within the cap, or diverges, is retried from t^n at half the
    step (up to ``max_dt_halvings`` times); the cap grows back after easy steps.
 
@@ -43,6 +44,7 @@ from ..flow.simulation import FlowModel, FlowSetup, SimulationDiverged
 from ..network.network import Network
 from .apertures import ApertureLaw
 from .geometry import DomainGeometry, contact_gaps
+from .pockets import PocketNewton, trapped_pockets
 from .quasi_newton import InterfaceQuasiNewton
 
 
@@ -91,6 +93,9 @@ class CouplingSetup:
     # last accepted step (dV = rate x dt) rather than standing still: where the grains move
     # smoothly the first iteration then already converges
     pv_predictor: bool = True
+    # trapped pockets (pockets.py): each IQN update is followed by a safeguarded scalar Newton
+    # step on their trial pressures
+    pv_pocket_newton: bool = True
 
 
 @dataclass(frozen=True)
@@ -115,6 +120,7 @@ class CouplingRecord:
     dt_halvings: int = 0
     dem_seconds: float = 0.0  # wall time in DEM cycles
     rewind_seconds: float = 0.0  # wall time saving and restoring the DEM state
+    pocket_attempts: int = 0  # P-V attempts with trapped pockets (pockets.py)
 
 
 class CoupledFlowModel(FlowModel):
@@ -126,6 +132,7 @@ class CoupledFlowModel(FlowModel):
         self.geometry = DomainGeometry(net)
         self.coupling_record = CouplingRecord()
         self.quasi_newton = InterfaceQuasiNewton()
+        self.pocket_newton = PocketNewton(net.n_domains, self.pipe_a, self.pipe_b)
         self.coupling_dt = setup.dt  # flow-step cap of the coupling (halved when P-V fails)
         self._easy_steps = 0  # consecutive easy steps since the cap was last changed
         self._tried_dt = setup.dt  # the last step the P-V iteration was tried at
@@ -267,6 +274,12 @@ class CoupledFlowModel(FlowModel):
         finally:
             self._predicting = False
         self._tried_dt = dt
+        pockets = np.zeros(0, int)
+        if c.pv_pocket_newton and not c.one_way and c.pv_rewind:
+            pockets = trapped_pockets(state.invaded, state.saturation, self.pipe_a, self.pipe_b)
+            pockets = np.setdiff1d(pockets, self.outlet)  # an outflow domain is held at p = 0
+            self.pocket_newton.new_step(pockets)
+            self.coupling_record.pocket_attempts += len(pockets) > 0
         positions = self.move_grains(sol.pressure, dt)
         if c.one_way:
             return sol, fill, dt, limiter, 0, True
@@ -293,12 +306,22 @@ class CoupledFlowModel(FlowModel):
             if iteration == c.pv_max_iter:
                 break
             if c.pv_rewind:
-                p_trial = self.quasi_newton.update(p_trial, calc.pressure)
+                p_next = self.quasi_newton.update(p_trial, calc.pressure)
+                if len(pockets):
+                    p_next[pockets] = self.pocket_newton.update(p_trial, calc.pressure, p_next,
+                                                                self._closed(calc.blocked, g)[pockets])
+                p_trial = p_next
                 self._rewind()
             else:
                 p_trial = calc.pressure
             positions = self.move_grains(p_trial, dt)
         return sol, fill, dt, limiter, c.pv_max_iter, False
+
+    def _closed(self, blocked: np.ndarray, g: np.ndarray) -> np.ndarray:
+        """Domains with no open pipe (no flux in or out at this solve)."""
+        open_pipe = ~blocked & (g > 0.0)
+        n = self.net.n_domains
+        return (np.bincount(self.pipe_a[open_pipe], minlength=n) + np.bincount(self.pipe_b[open_pipe], minlength=n)) == 0
 
     def _accept(self, state, sol, fill, dt, limiter):
         super()._accept(state, sol, fill, dt, limiter)

@@ -54,6 +54,7 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
         "max_pv_iterations": int(max(cr.pv_iterations)) if cr.pv_iterations else 0,
         "unconverged_pv_steps": cr.unconverged_steps,
         "pv_dt_halvings": cr.dt_halvings,
+        "pv_pocket_attempts": cr.pocket_attempts,
         "dem_wall_fraction": cr.dem_seconds / rec.wall_time if rec.wall_time else float("nan"),
         "rewind_wall_fraction": cr.rewind_seconds / rec.wall_time if rec.wall_time else float("nan"),
         "dem_cycles": cr.dem_cycles,
