@@ -319,9 +319,7 @@ class CoupledFlowModel(FlowModel):
 
     def _closed(self, blocked: np.ndarray, g: np.ndarray) -> np.ndarray:
         """Domains with no open pipe (no flux in or out at this solve)."""
-        open_pipe = ~blocked & (g > 0.0)
-        n = self.net.n_domains
-        return (np.bincount(self.pipe_a[open_pipe], minlength=n) + np.bincount(self.pipe_b[open_pipe], minlength=n)) == 0
+        return self._sum_conductance(np.where(blocked, 0.0, g)) == 0.0
 
     def _accept(self, state, sol, fill, dt, limiter):
         super()._accept(state, sol, fill, dt, limiter)
