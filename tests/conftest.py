@@ -1,9 +1,23 @@
+import signal
+import subprocess
+
 import numpy as np
 import pytest
 
 from hmdem.cases import CASES
 from hmdem.flow.simulation import FlowModel
 from hmdem.scenario import build_scenario
+
+
+def popen_interruptible(cmd, **kwargs):
+    """``subprocess.Popen(cmd)`` whose child handles SIGINT as from a terminal (KeyboardInterrupt).
+
+    A non-interactive shell starts background jobs with SIGINT ignored, and an ignored signal
+    is inherited: under ``make test &`` the child would never see the test's SIGINT and a
+    Ctrl-C test would fail (or pass) for the wrong reason. Restoring the default disposition
+    before exec lets Python install its handler."""
+    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL), **kwargs)
 
 
 def run_case(name, **setup_changes):

@@ -8,6 +8,7 @@ import tomllib
 import numpy as np
 import pytest
 
+from conftest import popen_interruptible
 from hmdem.hele_shaw import main
 
 CMD = [sys.executable, "-m", "hmdem.hele_shaw"]
@@ -121,11 +122,7 @@ def test_real_signal_leaves_valid_partial_directory(tmp_path, signal_name):
     import time
 
     out = tmp_path / "cf1"
-    # as from a terminal: SIGINT handled even when pytest itself runs in the background (where
-    # the shell makes children ignore it)
-    proc = subprocess.Popen(CMD + ["linear", "--case", "cf1", "--out", str(out)], stderr=subprocess.PIPE,
-                            stdout=subprocess.PIPE, text=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    proc = popen_interruptible(CMD + ["linear", "--case", "cf1", "--out", str(out)])
     deadline = time.time() + 60
     while time.time() < deadline:  # wait for the time loop to start (the progress bar shows steps)
         line = proc.stderr.readline()

@@ -14,6 +14,7 @@ import time
 import numpy as np
 import pytest
 
+from conftest import popen_interruptible
 from sph_bridge import surfaces
 from sph_bridge.lga import automaton, channels, rules, studies
 from sph_bridge.lga.cli import main as lga_main
@@ -372,9 +373,7 @@ def test_bad_input_is_one_line(tmp_path, argv, flag):
 
 def test_ctrl_c_leaves_a_valid_partial_directory(tmp_path):
     out = tmp_path / "run"
-    proc = subprocess.Popen(CMD + ["poiseuille", "--ny", "200", "--out", str(out)], stderr=subprocess.PIPE,
-                            stdout=subprocess.PIPE, text=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    proc = popen_interruptible(CMD + ["poiseuille", "--ny", "200", "--out", str(out)])
     deadline = time.time() + 60
     while time.time() < deadline:  # the bar appears once the lattice runs
         line = proc.stderr.readline()

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import popen_interruptible
 from hmdem.network.packing import DiscPacking
 from hmdem.sweep.__main__ import main as sweep_main
 from hmdem.sweep.grid import Axis, SweepPoint, lenormand_points, lenormand_spec, parse_axis
@@ -202,7 +203,7 @@ def test_an_interrupted_sweep_finishes_with_the_same_table(reference, packing, t
     out = tmp_path / "sweep"
     cmd = [sys.executable, "-m", "hmdem.sweep", "lenormand", *GRID, "--workers", "1", "--packing", str(packing),
            "--out", str(out), "--quiet"]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = popen_interruptible(cmd)
     deadline = time.time() + 300
     while time.time() < deadline:  # stop it once the first run is in and before the last
         runs = out / "runs"
