@@ -24,7 +24,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from hmdem.coupling.model import CoupledFlowModel, PVEvaluation  # noqa: E402
-from hmdem.coupling.pockets import trapped_pockets  # noqa: E402
+from hmdem.coupling.pockets import PocketNewton, trapped_pockets  # noqa: E402
 from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, start_grains  # noqa: E402
 from hmdem.dem.assembly import DiscAssembly  # noqa: E402
 
@@ -61,6 +61,8 @@ def resume(checkpoint: Path):
         setattr(grains, key, value)
     model = data["model"]
     model.grains = grains
+    if not hasattr(model, "pocket_newton"):  # a checkpoint saved before pockets.py
+        model.pocket_newton = PocketNewton(model.net.n_domains, model.pipe_a, model.pipe_b)
     return model, data["state"]
 
 

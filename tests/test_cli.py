@@ -166,6 +166,13 @@ def test_radial_run_directory_contract(tmp_path):
     assert config["coupling"]["pv_pocket_newton"] is True  # --no-pocket-newton turns it off
 
 
+@pytest.mark.yade
+def test_no_pocket_newton_flag_reaches_the_run(tmp_path):
+    out = tmp_path / "b3"
+    assert main(["radial", "--case", "B3", "--max-steps", "2", "--no-pocket-newton", "--out", str(out), "--quiet"]) == 0
+    assert tomllib.loads((out / "config.toml").read_text())["coupling"]["pv_pocket_newton"] is False
+
+
 def test_pressure_beyond_the_constant_bulk_modulus_range_is_flagged(tmp_path, capsys):
     # decisions #31: a constant K (seed 004's linear equation of state) is accurate to p/K = 0.1.
     # The paper's own vf case pushes its invading air (K = 0.14 MPa) to a peak inlet pressure of

@@ -277,8 +277,9 @@ class CoupledFlowModel(FlowModel):
         pockets = np.zeros(0, int)
         if c.pv_pocket_newton and not c.one_way and c.pv_rewind:
             pockets = trapped_pockets(state.invaded, state.saturation, self.pipe_a, self.pipe_b)
-            pockets = np.setdiff1d(pockets, self.outlet)  # an outflow domain is held at p = 0
-            self.pocket_newton.new_step(pockets)
+            # outflow domains are held at p = 0; the inflow domains are invaded from the start
+            pockets = np.setdiff1d(pockets, np.r_[self.outlet, self.inlet])
+            self.pocket_newton.new_step(pockets, dt)
             self.coupling_record.pocket_attempts += len(pockets) > 0
         positions = self.move_grains(sol.pressure, dt)
         if c.one_way:
@@ -309,7 +310,7 @@ class CoupledFlowModel(FlowModel):
                 p_next = self.quasi_newton.update(p_trial, calc.pressure)
                 if len(pockets):
                     p_next[pockets] = self.pocket_newton.update(p_trial, calc.pressure, p_next,
-                                                                self._closed(calc.blocked, g)[pockets])
+                                                                self._closed(calc.blocked, g)[pockets], tolerance)
                 p_trial = p_next
                 self._rewind()
             else:
