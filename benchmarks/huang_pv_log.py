@@ -61,8 +61,12 @@ def resume(checkpoint: Path):
         setattr(grains, key, value)
     model = data["model"]
     model.grains = grains
-    if not hasattr(model, "pocket_newton"):  # a checkpoint saved before pockets.py
-        model.pocket_newton = PocketNewton(model.net.n_domains, model.pipe_a, model.pipe_b)
+    # a checkpoint saved before pockets.py, or before some of its attributes: fill them in fresh
+    fresh = PocketNewton(model.net.n_domains, model.pipe_a, model.pipe_b)
+    if not hasattr(model, "pocket_newton"):
+        model.pocket_newton = fresh
+    for name, value in vars(fresh).items():
+        model.pocket_newton.__dict__.setdefault(name, value)
     return model, data["state"]
 
 
