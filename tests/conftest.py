@@ -16,8 +16,10 @@ def popen_interruptible(cmd, **kwargs):
     is inherited: under ``make test &`` the child would never see the test's SIGINT and a
     Ctrl-C test would fail (or pass) for the wrong reason. Restoring the default disposition
     before exec lets Python install its handler."""
-    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL), **kwargs)
+    for stream in ("stdout", "stderr"):
+        kwargs.setdefault(stream, subprocess.PIPE)
+    return subprocess.Popen(cmd, text=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+                            **kwargs)
 
 
 def run_case(name, **setup_changes):

@@ -315,3 +315,37 @@ def test_pocket_newton_follows_a_root_the_neighbours_move(gain, shift):
         h, p_next = np.array([h0, x[1]]), np.array([h0, -22_000.0 + shift * 0.8 ** (n + 1)])
         x = np.array([solver.update(x, h, p_next, np.array([closed]), 1.0)[0], p_next[1]])
     assert max(errors[24:]) < 1.0
+
+
+def _evaluate(solver, x, h, closed, neighbour_next=0.0, tolerance=1.0):
+    """One update of a pocket (domain 0) whose neighbour (domain 1) sits at 0 Pa and moves to
+    ``neighbour_next``; the pocket's next trial pressure."""
+    p_trial, p_calc = np.array([x, 0.0]), np.array([h, 0.0])
+    return solver.update(p_trial, p_calc, np.array([h, neighbour_next]), np.array([closed]), tolerance)[0]
+
+
+def test_pocket_gain_is_learned_only_over_steps_above_the_tolerance_and_capped():
+    from hmdem.coupling.pockets import STEEPEST_GAIN, PocketNewton
+
+    solver = PocketNewton(2, np.array([0]), np.array([1]))
+    solver.new_step(np.array([0]), 1e-5)
+    _evaluate(solver, 20_000.0, 30_000.0, True, tolerance=1_000.0)
+    _evaluate(solver, 20_500.0, 10_000.0, True, tolerance=1_000.0)  # dy 500 Pa < tolerance: noise
+    assert np.isnan(solver.gain[0])
+    _evaluate(solver, 22_000.0, -990_000.0, True, tolerance=1_000.0)  # a secant of -667 Pa/Pa
+    assert solver.gain[0] == STEEPEST_GAIN == -100.0
+
+
+def test_pocket_open_branch_low_bound_outlives_a_stale_closed_one():
+    """An open evaluation with p_calc above p_trial (liquid entering at c = neighbour + p_c,
+    here 45 kPa) bounds the root from below for any neighbour pressure; a tighter closed-branch
+    low that the neighbour's rise makes stale must not take it along. The third evaluation is
+    open, so the step bisects between 10 kPa and 50 kPa in y: 30 kPa + the neighbour's 2 kPa."""
+    from hmdem.coupling.pockets import PocketNewton
+
+    solver = PocketNewton(2, np.array([0]), np.array([1]))
+    solver.new_step(np.array([0]), 1e-5)
+    _evaluate(solver, 10_000.0, 45_000.0, False)  # open, residual > 0: low 10 kPa, for good
+    _evaluate(solver, 40_000.0, 41_000.0, True)  # closed, residual > 0: low 40 kPa while m stays 0
+    # open, residual < 0: high 50 kPa; the neighbour rises 2 kPa, so 41 - 40 - 2 < 0: that low is stale
+    assert _evaluate(solver, 50_000.0, 45_000.0, False, neighbour_next=2_000.0) == pytest.approx(32_000.0)

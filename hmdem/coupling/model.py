@@ -277,7 +277,7 @@ class CoupledFlowModel(FlowModel):
         pockets = np.zeros(0, int)
         if c.pv_pocket_newton and not c.one_way and c.pv_rewind:
             pockets = trapped_pockets(state.invaded, state.saturation, self.pipe_a, self.pipe_b)
-            # outflow domains are held at p = 0; the inflow domains are invaded from the start
+            # outflow domains are held at p = 0; inflow domains receive the injection: neither is closed
             pockets = np.setdiff1d(pockets, np.r_[self.outlet, self.inlet])
             self.pocket_newton.new_step(pockets, dt)
             self.coupling_record.pocket_attempts += len(pockets) > 0

@@ -16,7 +16,10 @@ So after each IQN update the pockets' trial pressures are replaced by a safeguar
 Newton step in y: the gain is learned from two evaluations on the closed branch (f) and kept
 from step to step per domain and per octave of dt (grains pushed for 1e-9 s barely move, for
 1e-5 s they settle: the gain depends on dt); evaluations with p_calc > p_trial and < p_trial
-bracket the root in y, and a Newton step that leaves the bracket is replaced by bisection.
+bracket the root in y, each bound taken again as the neighbours move, and a Newton step that
+leaves the bracket, or follows an evaluation on the open branch, is replaced by bisection.
+Where the map follows more than the neighbours' mean (B1's pocket, BENCHMARKS.md) this scalar
+step fights IQN and is slower than IQN alone (--no-pocket-newton).
 Leaving the pockets out of IQN made things worse (the neighbours' updates move them), so IQN
 still sees them.
 """
@@ -71,9 +74,11 @@ class PocketNewton:
         self._slot, self._neighbour = pairs[:, 0], pairs[:, 1]
         self._count = np.maximum(np.bincount(self._slot, minlength=k), 1)
         self._closed = (np.full(k, np.nan), np.full(k, np.nan))  # last (y, p_calc) on the closed branch
-        # the bracket: y with residual > 0 / < 0, and p_calc there (nan: a low on the open branch)
-        self._low, self._high = np.full(k, np.nan), np.full(k, np.nan)
-        self._low_h, self._high_h = np.full(k, np.nan), np.full(k, np.nan)
+        # the bracket in y: the highest y with residual > 0 on the open branch (kept all step), the
+        # highest on the closed branch and the lowest with residual < 0, with p_calc at those two
+        self._open_low = np.full(k, np.nan)
+        self._low, self._low_h = np.full(k, np.nan), np.full(k, np.nan)
+        self._high, self._high_h = np.full(k, np.nan), np.full(k, np.nan)
 
     def neighbour_mean(self, pressure: np.ndarray) -> np.ndarray:
         return np.bincount(self._slot, pressure[self._neighbour], len(self.pockets)) / self._count
@@ -105,17 +110,20 @@ class PocketNewton:
         # the others are taken again at the neighbours' next mean, p_calc - y - m (an upper bound of
         # a high one's), and drop out when that turns their sign
         r = h - x
-        new_low, new_high = (r > 0) & ~(self._low > y), (r < 0) & ~(self._high < y)
-        self._low = np.where(new_low, y, self._low)
-        self._low_h = np.where(new_low, np.where(closed, h, np.nan), self._low_h)
+        self._open_low = np.where(~closed & (r > 0) & ~(self._open_low > y), y, self._open_low)
+        new_low, new_high = closed & (r > 0) & ~(self._low > y), (r < 0) & ~(self._high < y)
+        self._low, self._low_h = np.where(new_low, y, self._low), np.where(new_low, h, self._low_h)
         self._high, self._high_h = np.where(new_high, y, self._high), np.where(new_high, h, self._high_h)
-        stale_low = self._low_h - self._low - next_mean <= 0  # nan compares False: open lows stay
-        stale_high = self._high_h - self._high - next_mean >= 0
-        self._low[stale_low], self._high[stale_high] = np.nan, np.nan
-        self._low_h[stale_low], self._high_h[stale_high] = np.nan, np.nan
-        bracketed = self._low < self._high
-        inside = (proposal > self._low) & (proposal < self._high)
+        stale_low = ~(self._low_h - self._low - next_mean > 0)
+        stale_high = ~(self._high_h - self._high - next_mean < 0)
+        # crossed bounds: the map also follows pressures beyond the neighbours' mean (B1); only the
+        # open-branch low is sure, the other two start again
+        crossed = np.fmax(self._open_low, self._low) >= self._high
+        self._low[stale_low | crossed], self._high[stale_high | crossed] = np.nan, np.nan
+        low = np.fmax(self._open_low, self._low)
+        bracketed = low < self._high
+        inside = (proposal > low) & (proposal < self._high)
         # after an open evaluation a Newton step would start from the same closed point as the one
         # that just failed (the neighbours' moves can keep it inside the bracket): bisect instead
         bisect = bracketed & (~inside | ~closed)
-        return next_mean + np.where(bisect, 0.5 * (self._low + self._high), proposal)
+        return next_mean + np.where(bisect, 0.5 * (low + self._high), proposal)
