@@ -3,8 +3,8 @@
 Debian 12's ``python3-yade`` installs its modules in ``/usr/lib/x86_64-linux-gnu/yade-double/py``
 but the ``/usr/lib/python3/dist-packages/yade`` symlink points to a folder that does not exist.
 :func:`import_yade` puts the real folder on ``sys.path`` (``HMDEM_YADE_PATH`` overrides the search)
-and imports ``yade``, single-threaded unless ``OMP_NUM_THREADS`` says otherwise. Nothing outside
-:mod:`hmdem.dem` should call it.
+and imports ``yade``, single-threaded unless asked for more (``threads``, or ``OMP_NUM_THREADS``).
+Nothing outside :mod:`hmdem.dem` should call it.
 """
 
 from __future__ import annotations
@@ -43,15 +43,25 @@ def candidate_paths() -> list[str]:
     return [p for p in dict.fromkeys(paths) if os.path.isdir(os.path.join(p, "yade"))]
 
 
-def import_yade():
+def import_yade(threads: int | None = None):
     """Import and return the ``yade`` module, fixing ``sys.path`` for Debian's layout.
 
+    ``threads``: OpenMP threads of YADE's force and integration loops. OpenMP reads them once,
+    when YADE loads, so asking for another count after that raises RuntimeError. None keeps
+    what the process was started with (``yade -jN``, ``OMP_NUM_THREADS``), else 1.
     Raises :class:`YadeNotFound` with the fix when YADE is absent.
     """
     if "yade" in sys.modules and hasattr(sys.modules["yade"], "O"):
-        return sys.modules["yade"]
+        yade = sys.modules["yade"]
+        if threads is not None and yade.O.numThreads != threads:
+            raise RuntimeError(f"YADE already runs {yade.O.numThreads} OpenMP thread(s) in this process; "
+                               f"{threads} must be asked for before it is first imported")
+        return yade
     # one OpenMP thread unless the user asks for more: YADE's parallel force sums are not
-    # reproducible bit for bit, and packings must be deterministic for a seed
+    # reproducible bit for bit (the same run on 2 threads ends at other positions each time),
+    # and packings must be deterministic for a seed
+    if threads is not None:
+        os.environ["OMP_NUM_THREADS"] = str(threads)
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     for path in candidate_paths():
         if path not in sys.path:

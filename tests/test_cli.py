@@ -27,6 +27,7 @@ CMD = [sys.executable, "-m", "hmdem.hele_shaw"]
     (["radial", "--viscosity-ratio", "-5"], "--viscosity-ratio"),
     (["radial", "--ca-star", "nan"], "--ca-star"),
     (["radial", "--dem-cycles", "0"], "--dem-cycles"),
+    (["radial", "--threads", "0"], "--threads"),
 ])
 def test_bad_input_one_line_exit_2_nothing_written(tmp_path, args, name):
     out = tmp_path / "run"
@@ -164,6 +165,7 @@ def test_radial_run_directory_contract(tmp_path):
     config = tomllib.loads((out / "config.toml").read_text())
     assert config["coupling"]["one_way"] is False and config["aperture_law"]["residual_aperture"] == 7.53e-6
     assert config["coupling"]["pv_pocket_newton"] is True  # --no-pocket-newton turns it off
+    assert config["dem"]["threads"] == 1  # bit-reproducible unless --threads asks for more
 
 
 @pytest.mark.yade
@@ -171,6 +173,16 @@ def test_no_pocket_newton_flag_reaches_the_run(tmp_path):
     out = tmp_path / "b3"
     assert main(["radial", "--case", "B3", "--max-steps", "2", "--no-pocket-newton", "--out", str(out), "--quiet"]) == 0
     assert tomllib.loads((out / "config.toml").read_text())["coupling"]["pv_pocket_newton"] is False
+
+
+@pytest.mark.yade
+def test_threads_flag_reaches_yade(tmp_path):
+    # OpenMP reads the thread count when YADE loads, so this needs a fresh process
+    out = tmp_path / "b3"
+    proc = subprocess.run(CMD + ["radial", "--case", "B3", "--max-steps", "2", "--threads", "2", "--out", str(out),
+                                 "--quiet"], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert tomllib.loads((out / "config.toml").read_text())["dem"]["threads"] == 2
 
 
 def test_pressure_beyond_the_constant_bulk_modulus_range_is_flagged(tmp_path, capsys):

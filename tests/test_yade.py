@@ -70,3 +70,14 @@ def test_shipped_huang_sample_is_reproduced_by_its_command(tmp_path):
     np.testing.assert_array_equal(new.fixed, shipped.fixed)
     assert shipped.confining_stress == pytest.approx(0.14e6, rel=0.005)
     assert len(shipped.radii) == 1395 and shipped.radii.min() >= 13e-6 and shipped.radii.max() <= 21.6e-6
+
+
+@pytest.mark.yade
+def test_thread_count_cannot_change_once_yade_runs():
+    # OpenMP reads OMP_NUM_THREADS once, when YADE loads: asking for another count later must
+    # fail loudly rather than run silently on the old one
+    yade = import_yade()
+    running = yade.O.numThreads
+    assert import_yade(running) is yade
+    with pytest.raises(RuntimeError, match="OpenMP thread"):
+        import_yade(running + 1)

@@ -128,12 +128,13 @@ def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, 
     return RadialScenario(case, pk, net, setup, coupling, sigma, length, ca, fixed)
 
 
-def start_grains(sc: RadialScenario):
-    """The YADE disc assembly of the scenario's packing, settled; sets the stable DEM step."""
+def start_grains(sc: RadialScenario, threads: int | None = None):
+    """The YADE disc assembly of the scenario's packing, settled; sets the stable DEM step.
+    ``threads``: YADE's OpenMP threads (None: as the process was started, else 1)."""
     from ..dem.assembly import DiscAssembly
 
     pk = sc.packing
-    grains = DiscAssembly(pk.centres, pk.radii, fixed=sc.fixed)
+    grains = DiscAssembly(pk.centres, pk.radii, fixed=sc.fixed, threads=threads)
     grains.run(SETTLE_CYCLES)
     sc.coupling.stable_dem_step = grains.timestep = grains.stable_timestep()
     return grains

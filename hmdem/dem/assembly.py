@@ -29,8 +29,8 @@ class DiscAssembly:
 
     def __init__(self, centres: np.ndarray, radii: np.ndarray, *, k_n: float = 7.49e7, ks_over_kn: float = 1.0,
                  friction: float = 0.6, density: float = 2650.0, damping: float = 0.7,
-                 fixed: np.ndarray | None = None, timestep_safety: float = 0.5):
-        import_yade()
+                 fixed: np.ndarray | None = None, timestep_safety: float = 0.5, threads: int | None = None):
+        import_yade(threads)
         from yade import O, utils
 
 
@@ -67,6 +67,11 @@ class DiscAssembly:
         contacts = np.bincount(pairs.ravel(), minlength=len(self.ids))[free]
         stiffness = np.maximum(contacts, 1) * max(self.k_n, self.k_s)
         return safety * float(np.min(np.sqrt(self.masses()[free] / stiffness)))
+
+    @property
+    def threads(self) -> int:
+        """OpenMP threads YADE runs on (1 unless asked: more are faster but not bit-reproducible)."""
+        return int(self._O.numThreads)
 
     @property
     def time(self) -> float:
