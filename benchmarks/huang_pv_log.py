@@ -25,6 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from hmdem.coupling.model import CoupledFlowModel, PVEvaluation  # noqa: E402
 from hmdem.coupling.pockets import PocketNewton, trapped_pockets  # noqa: E402
+from hmdem.coupling.quasi_newton import InterfaceQuasiNewton  # noqa: E402
 from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, start_grains  # noqa: E402
 from hmdem.dem.assembly import DiscAssembly  # noqa: E402
 
@@ -70,9 +71,13 @@ def resume(checkpoint: Path):
     return model, data["state"]
 
 
-def log(checkpoint: Path, steps: int, out_csv: Path, pocket_newton: bool = True) -> None:
+def log(checkpoint: Path, steps: int, out_csv: Path, pocket_newton: bool = True,
+        reuse_steps: int | None = None) -> None:
     model, state = resume(checkpoint)
     model.coupling.pv_pocket_newton = pocket_newton
+    if reuse_steps is not None:  # a fresh IQN (the checkpoint's keeps the pairs of its last steps)
+        model.coupling.pv_reuse_steps = reuse_steps
+        model.quasi_newton = InterfaceQuasiNewton(reuse_steps=reuse_steps)
     model.pv_log = []
     pockets = np.zeros(model.net.n_domains, bool)
     pockets[trapped_pockets(state.invaded, state.saturation, model.pipe_a, model.pipe_b)] = True
@@ -113,11 +118,13 @@ def main() -> None:
     g.add_argument("--csv", type=Path, required=True)
     g.add_argument("--no-pocket-newton", action="store_true",
                    help="leave the trapped pockets to IQN alone (CouplingSetup.pv_pocket_newton = False)")
+    g.add_argument("--pv-reuse-steps", type=int,
+                   help="IQN reuses the secant pairs of this many earlier steps (default: as checkpointed)")
     args = parser.parse_args()
     if args.command == "save":
         save(args.case, args.until, args.checkpoint)
     else:
-        log(args.checkpoint, args.steps, args.csv, not args.no_pocket_newton)
+        log(args.checkpoint, args.steps, args.csv, not args.no_pocket_newton, args.pv_reuse_steps)
 
 
 if __name__ == "__main__":

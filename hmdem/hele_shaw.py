@@ -66,12 +66,15 @@ def build_parser() -> argparse.ArgumentParser:
     rad.add_argument("--pv-max-iter", type=positive_number, help="P-V iteration cap per attempt (default 12)")
     rad.add_argument("--pv-grow-after", type=positive_number,
                      help="easy steps in a row before a halved flow-step cap doubles back (default 1)")
+    rad.add_argument("--pv-reuse-steps", type=non_negative_int,
+                     help="earlier flow steps (same dt) whose secant pairs the quasi-Newton update reuses "
+                          "(default 5; B1 runs best with 0, --pv-max-iter 24 and --no-pocket-newton: BENCHMARKS.md)")
     rad.add_argument("--no-pocket-newton", action="store_true",
                      help="leave trapped pockets to the quasi-Newton update alone (default: a scalar Newton "
                           "step on each, hmdem/coupling/pockets.py)")
     rad.add_argument("--threads", type=positive_int,
-                     help="OpenMP threads of the DEM (YADE): 2 runs its cycles ~1.6x faster on 2 cores but the "
-                          "run is then not bit-reproducible (default 1, or as yade -jN / OMP_NUM_THREADS say)")
+                     help="OpenMP threads of the DEM (YADE): 2 runs its cycles up to 1.7x faster on 2 cores but "
+                          "the run is then not bit-reproducible (default 1, or as yade -jN / OMP_NUM_THREADS say)")
     pv = rad.add_mutually_exclusive_group()
     pv.add_argument("--pv-rewind", action="store_true",
                     help="rewind the DEM to t^n before each P-V iteration, quasi-Newton update (default)")
@@ -209,6 +212,8 @@ def run_radial(args) -> int:
         sc.coupling.pv_easy_steps_to_grow = int(args.pv_grow_after)
     sc.coupling.pv_rewind = not args.pv_continue
     sc.coupling.pv_pocket_newton = not args.no_pocket_newton
+    if args.pv_reuse_steps is not None:
+        sc.coupling.pv_reuse_steps = args.pv_reuse_steps
     if args.t_max is not None:
         sc.setup.t_max = args.t_max
     if args.max_steps is not None:

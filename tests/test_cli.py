@@ -28,6 +28,7 @@ CMD = [sys.executable, "-m", "hmdem.hele_shaw"]
     (["radial", "--ca-star", "nan"], "--ca-star"),
     (["radial", "--dem-cycles", "0"], "--dem-cycles"),
     (["radial", "--threads", "0"], "--threads"),
+    (["radial", "--pv-reuse-steps", "-1"], "--pv-reuse-steps"),
 ])
 def test_bad_input_one_line_exit_2_nothing_written(tmp_path, args, name):
     out = tmp_path / "run"
@@ -165,14 +166,17 @@ def test_radial_run_directory_contract(tmp_path):
     config = tomllib.loads((out / "config.toml").read_text())
     assert config["coupling"]["one_way"] is False and config["aperture_law"]["residual_aperture"] == 7.53e-6
     assert config["coupling"]["pv_pocket_newton"] is True  # --no-pocket-newton turns it off
+    assert config["coupling"]["pv_reuse_steps"] == 5
     assert config["dem"]["threads"] == 1  # bit-reproducible unless --threads asks for more
 
 
 @pytest.mark.yade
-def test_no_pocket_newton_flag_reaches_the_run(tmp_path):
+def test_no_pocket_newton_and_reuse_flags_reach_the_run(tmp_path):
     out = tmp_path / "b3"
-    assert main(["radial", "--case", "B3", "--max-steps", "2", "--no-pocket-newton", "--out", str(out), "--quiet"]) == 0
-    assert tomllib.loads((out / "config.toml").read_text())["coupling"]["pv_pocket_newton"] is False
+    assert main(["radial", "--case", "B3", "--max-steps", "2", "--no-pocket-newton", "--pv-reuse-steps", "0",
+                 "--out", str(out), "--quiet"]) == 0
+    coupling = tomllib.loads((out / "config.toml").read_text())["coupling"]
+    assert coupling["pv_pocket_newton"] is False and coupling["pv_reuse_steps"] == 0
 
 
 @pytest.mark.yade

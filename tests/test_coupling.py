@@ -156,6 +156,10 @@ def test_quasi_newton_reuses_the_secants_of_earlier_steps_of_the_same_dt():
     other_dt = solve(qn, 5e-7, rng.normal(size=n))
     assert again < first / 2
     assert other_dt >= first - 2
+    # reuse_steps = 0 (--pv-reuse-steps 0): every step starts afresh
+    none = InterfaceQuasiNewton(filter_tolerance=1e-10, reuse_steps=0)
+    first = solve(none, 1e-6, rng.normal(size=n))
+    assert solve(none, 1e-6, rng.normal(size=n)) >= first - 2 and not none.reused
 
 
 def test_quasi_newton_drops_reused_secants_that_make_the_residual_grow():

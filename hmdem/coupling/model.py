@@ -96,6 +96,10 @@ class CouplingSetup:
     # trapped pockets (pockets.py): each IQN update is followed by a safeguarded scalar Newton
     # step on their trial pressures
     pv_pocket_newton: bool = True
+    # flow steps of the same dt whose secant pairs the IQN update reuses (IQN-ILS(q)); 0: none.
+    # They help where the map changes little from step to step (A1, A3) and hurt where it does
+    # (B1's late stretch: decisions #46, BENCHMARKS.md)
+    pv_reuse_steps: int = 5
 
 
 @dataclass(frozen=True)
@@ -131,7 +135,7 @@ class CoupledFlowModel(FlowModel):
         self.grains, self.coupling = grains, coupling
         self.geometry = DomainGeometry(net)
         self.coupling_record = CouplingRecord()
-        self.quasi_newton = InterfaceQuasiNewton()
+        self.quasi_newton = InterfaceQuasiNewton(reuse_steps=coupling.pv_reuse_steps)
         self.pocket_newton = PocketNewton(net.n_domains, self.pipe_a, self.pipe_b)
         self.coupling_dt = setup.dt  # flow-step cap of the coupling (halved when P-V fails)
         self._easy_steps = 0  # consecutive easy steps since the cap was last changed
