@@ -62,7 +62,9 @@ def main() -> None:
     for threads in args.threads:
         for _ in range(args.repeats):
             proc = subprocess.run([sys.executable, __file__, "--child", str(threads), "--cycles", str(args.cycles)],
-                                  capture_output=True, text=True, check=True)
+                                  capture_output=True, text=True)
+            if proc.returncode != 0:
+                sys.exit(f"dem_threads.py: the {threads}-thread process failed:\n{proc.stderr}")
             r = json.loads(proc.stdout.strip().splitlines()[-1])
             print(f"| {r['threads']} | {min(r['ms_per_cycle']):.3f}-{max(r['ms_per_cycle']):.3f} | "
                   f"{r['save_ms']:.0f} / {r['restore_ms']:.0f} | {r['digest'][:12]} |")

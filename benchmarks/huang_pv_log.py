@@ -25,6 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from hmdem.coupling.model import CoupledFlowModel, PVEvaluation  # noqa: E402
 from hmdem.coupling.pockets import PocketNewton, trapped_pockets  # noqa: E402
+from hmdem.cli import non_negative_int, positive_int  # noqa: E402
 from hmdem.coupling.quasi_newton import InterfaceQuasiNewton  # noqa: E402
 from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, start_grains  # noqa: E402
 from hmdem.dem.assembly import DiscAssembly  # noqa: E402
@@ -72,9 +73,11 @@ def resume(checkpoint: Path):
 
 
 def log(checkpoint: Path, steps: int, out_csv: Path, pocket_newton: bool = True,
-        reuse_steps: int | None = None) -> None:
+        reuse_steps: int | None = None, max_iter: int | None = None) -> None:
     model, state = resume(checkpoint)
     model.coupling.pv_pocket_newton = pocket_newton
+    if max_iter is not None:
+        model.coupling.pv_max_iter = max_iter
     if reuse_steps is not None:  # a fresh IQN (the checkpoint's keeps the pairs of its last steps)
         model.coupling.pv_reuse_steps = reuse_steps
         model.quasi_newton = InterfaceQuasiNewton(reuse_steps=reuse_steps)
@@ -118,13 +121,15 @@ def main() -> None:
     g.add_argument("--csv", type=Path, required=True)
     g.add_argument("--no-pocket-newton", action="store_true",
                    help="leave the trapped pockets to IQN alone (CouplingSetup.pv_pocket_newton = False)")
-    g.add_argument("--pv-reuse-steps", type=int,
-                   help="IQN reuses the secant pairs of this many earlier steps (default: as checkpointed)")
+    g.add_argument("--pv-reuse-steps", type=non_negative_int,
+                   help="IQN reuses the secant pairs of this many earlier steps; given, IQN starts afresh "
+                        "without the checkpoint's pairs (default: as checkpointed, pairs kept)")
+    g.add_argument("--pv-max-iter", type=positive_int, help="P-V iteration cap per attempt (default: as checkpointed)")
     args = parser.parse_args()
     if args.command == "save":
         save(args.case, args.until, args.checkpoint)
     else:
-        log(args.checkpoint, args.steps, args.csv, not args.no_pocket_newton, args.pv_reuse_steps)
+        log(args.checkpoint, args.steps, args.csv, not args.no_pocket_newton, args.pv_reuse_steps, args.pv_max_iter)
 
 
 if __name__ == "__main__":

@@ -68,7 +68,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="easy steps in a row before a halved flow-step cap doubles back (default 1)")
     rad.add_argument("--pv-reuse-steps", type=non_negative_int,
                      help="earlier flow steps (same dt) whose secant pairs the quasi-Newton update reuses "
-                          "(default 5; B1 runs best with 0, --pv-max-iter 24 and --no-pocket-newton: BENCHMARKS.md)")
+                          "(default 5; 0 with --pv-max-iter 24 and --no-pocket-newton was fastest on B1's late stretch, "
+                          "BENCHMARKS.md)")
     rad.add_argument("--no-pocket-newton", action="store_true",
                      help="leave trapped pockets to the quasi-Newton update alone (default: a scalar Newton "
                           "step on each, hmdem/coupling/pockets.py)")

@@ -306,3 +306,18 @@ def test_trapped_pocket_newton_reaches_the_same_pressures_in_fewer_evaluations(s
     assert evaluations_on < 0.75 * evaluations_off
     tolerance = 1e-3 * np.abs(p_on).max() + 1.0
     assert np.abs(p_on - p_off).max() <= 2.0 * tolerance
+
+
+def test_reuse_steps_reach_the_quasi_newton_update(small_sample):
+    # --pv-reuse-steps (decisions #47): with 0 no P-V update is ever built on an earlier step's
+    # secant pairs; with the default 5 the same reduced A3 steps do reuse them
+    reused = {}
+    for reuse_steps in (5, 0):
+        sc = build_radial_scenario(RADIAL_CASES["A3"], packing=small_sample)
+        sc.coupling.pv_reuse_steps = reuse_steps
+        sc.setup.max_steps = 30
+        model = CoupledFlowModel(sc.net, sc.setup, start_grains(sc), sc.coupling)
+        model.pv_log = []
+        model.run()
+        reused[reuse_steps] = sum(e.reused_pairs for e in model.pv_log)
+    assert reused[5] > 0 and reused[0] == 0

@@ -97,8 +97,8 @@ class CouplingSetup:
     # step on their trial pressures
     pv_pocket_newton: bool = True
     # flow steps of the same dt whose secant pairs the IQN update reuses (IQN-ILS(q)); 0: none.
-    # They help where the map changes little from step to step (A1, A3) and hurt where it does
-    # (B1's late stretch: decisions #46, BENCHMARKS.md)
+    # They save ~10 % over the first steps of A3 and B3 and hurt where the map changes from
+    # one step to the next (B1's late stretch: decisions #47, BENCHMARKS.md)
     pv_reuse_steps: int = 5
 
 

@@ -98,8 +98,9 @@ class DiscAssembly:
         """Keep the scene (positions, velocities, contacts and their shear history) in memory.
 
         The engines are left out of the snapshot and kept as they are: serialising the
-        collider's bound arrays was a third of the ~33 ms ``saveTmp`` (and ~8 of the ~24 ms
-        ``loadTmp``). The collider re-sorts from whatever order it last saw, so after a rewind it
+        collider's bound arrays was a third of ``saveTmp`` (and a third of ``loadTmp``); the rest
+        is the bodies and, two thirds of it, the interactions (~70 and ~55 ms with ~3,000 of them,
+        benchmarks/dem_threads.py). The collider re-sorts from whatever order it last saw, so after a rewind it
         finds the same contacts; trajectories after an engine-less rewind match a straight run to
         ~1e-18 m with identical contact pairs (summation order may differ), checked over 30
         rewinds in which ~450 contacts formed (tests/test_coupled_run.py repeats the check)."""
