@@ -69,6 +69,8 @@ def resume(checkpoint: Path):
         model.pocket_newton = fresh
     for name, value in vars(fresh).items():
         model.pocket_newton.__dict__.setdefault(name, value)
+    # a checkpoint saved before contacts' opening times were kept: those already opened get nan
+    model.__dict__.setdefault("opened_time", np.where(model.opened, np.nan, np.inf))
     return model, data["state"]
 
 

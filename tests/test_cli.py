@@ -163,6 +163,12 @@ def test_radial_run_directory_contract(tmp_path):
     assert summary["steps"] == 12 and summary["max_mass_balance_error"] < 1e-10
     fractures = np.load(out / "fractures.npz")
     assert fractures["opened"].sum() == summary["n_opened_contacts"]
+    # each opened contact has the time it opened, within the run; the others have none
+    opened_time = fractures["opened_time"]
+    assert np.array_equal(np.isfinite(opened_time), fractures["opened"])
+    assert np.all(opened_time[fractures["opened"]] <= summary["simulated_time_s"])
+    assert 0 <= summary["n_opened_ahead_of_fluid"] <= summary["n_opened_contacts"]
+    assert 0 <= summary["n_opened_in_invaded_zone"] <= summary["n_opened_contacts"]
     assert fractures["positions"].shape == (1395, 2)
     config = tomllib.loads((out / "config.toml").read_text())
     assert config["coupling"]["one_way"] is False and config["aperture_law"]["residual_aperture"] == 7.53e-6

@@ -209,6 +209,33 @@ def test_reduced_b3_rewound_iteration_converges(reduced_runs):
     assert rec.run_mass_balance_error(sc.setup.rate, state.t) < 1e-10
 
 
+def fracture_timing(run):
+    from hmdem.coupling.micromechanics import fracture_chronology
+
+    sc, model, state, rec = run
+    n = int(model.opened.sum())
+    return n, fracture_chronology(model.opened_time, sc.net.pipe_domains, state.invasion_time)
+
+
+def test_reduced_b3_fractures_precede_the_fluid(reduced_runs):
+    # seed 004 §4.2, B3: the injection pressure "creates fractures before fluid infiltration";
+    # H4 "fractures precede infiltration", read as: most opened contacts opened before either of
+    # their two pores filled (54 of 56 on this sample), and most end beyond the invaded zone
+    n, timing = fracture_timing(reduced_runs["B3"])
+    assert n > 0 and timing["n_opened_ahead_of_fluid"] > n / 2
+    assert timing["n_opened_in_invaded_zone"] < n / 2
+
+
+def test_reduced_a3_fractures_stay_in_the_infiltration_zone(reduced_runs):
+    # seed 004 §4.2, A3: the fractures near the port "remain within the fluid infiltration zone,
+    # not altering the circular flow front" (H2): at breakthrough most opened contacts have both
+    # pores filled (22 of 27 on this sample), where B3's fractures mostly run beyond the fluid
+    n, timing = fracture_timing(reduced_runs["A3"])
+    n_b3, timing_b3 = fracture_timing(reduced_runs["B3"])
+    assert n > 0 and timing["n_opened_in_invaded_zone"] > n / 2
+    assert timing["n_opened_in_invaded_zone"] / n > timing_b3["n_opened_in_invaded_zone"] / n_b3
+
+
 def test_reduced_b3_step_halving_rescues_a_capped_iteration(small_sample):
     # with 4 iterations per attempt (default 12) some B3 steps need a shorter flow step: the
     # halving retries them from t^n until they converge, and the run still conserves mass

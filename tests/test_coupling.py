@@ -107,6 +107,25 @@ def test_pipe_resistance_and_lowest_path_sum():
     assert total == pytest.approx(r[0] + r[1], rel=1e-12)
 
 
+def test_fracture_chronology_against_the_fluid_arrival():
+    # seed 004 §4.2: B3's fractures form "before fluid infiltration"; A3's and B1's "remain within
+    # the fluid infiltration zone". Pipe 0 opened before either of its domains filled, pipe 1
+    # after its first domain filled, pipe 2 (on the outer face) before its one domain filled,
+    # pipe 3 never; domains 0 and 1 are invaded at the end, domain 2 is not
+    from hmdem.coupling.micromechanics import fracture_chronology
+
+    pipe_domains = np.array([[0, 1], [1, 2], [2, -1], [0, 2]])
+    opened_time = np.array([1e-6, 5e-6, 2e-6, np.inf])
+    invasion_time = np.array([3e-6, 4e-6, np.inf])
+    c = fracture_chronology(opened_time, pipe_domains, invasion_time)
+    assert c == {"first_opening_time_s": 1e-6, "n_opened_ahead_of_fluid": 2, "n_opened_in_invaded_zone": 1}
+    # opening in the step that fills a domain is not ahead of the fluid
+    same_step = fracture_chronology(np.array([3e-6, np.inf, np.inf, np.inf]), pipe_domains, invasion_time)
+    assert same_step["n_opened_ahead_of_fluid"] == 0
+    nothing = fracture_chronology(np.full(4, np.inf), pipe_domains, invasion_time)
+    assert nothing["n_opened_ahead_of_fluid"] == 0 and nothing["first_opening_time_s"] != nothing["first_opening_time_s"]
+
+
 def test_quasi_newton_converges_where_substitution_diverges():
     """IQN-ILS on a linear fixed point x = M x + b with three modes of gain -5, -3 and 2.5
     (substitution diverges) and weak coupling elsewhere: on a linear map the least-squares model

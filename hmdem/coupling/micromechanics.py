@@ -38,3 +38,23 @@ def lowest_path_resistance(net: Network, pipes: np.ndarray, resistance: np.ndarr
     graph = coo_matrix((smallest, (keys // n, keys % n)), shape=(n, n)).tocsr()
     dist = dijkstra(graph, indices=np.asarray(sources), min_only=True)
     return float(np.min(dist[np.asarray(targets)]))
+
+
+def fracture_chronology(opened_time: np.ndarray, pipe_domains: np.ndarray, invasion_time: np.ndarray) -> dict:
+    """When the opened contacts opened relative to the fluid (seed 004 §4.2: in B3 "fractures
+    [form] before fluid infiltration ... guiding the fluid"; in A3 and B1 they "remain within
+    the fluid infiltration zone").
+
+    ``opened_time`` per pipe (inf: never opened), ``pipe_domains`` (m, 2) with -1 for the outer
+    face, ``invasion_time`` per domain (inf: not invaded). A contact opened *ahead of the fluid*
+    when it opened before either of its two domains was invaded; it lies *in the invaded zone*
+    when both of its domains are invaded at the end."""
+    opened = np.isfinite(opened_time)
+    padded = np.r_[invasion_time, np.inf]  # index -1 (outer face): never invaded
+    arrival = padded[pipe_domains]
+    first_arrival = arrival.min(axis=1)
+    return {
+        "first_opening_time_s": float(opened_time[opened].min()) if opened.any() else float("nan"),
+        "n_opened_ahead_of_fluid": int(np.sum(opened & (opened_time < first_arrival))),
+        "n_opened_in_invaded_zone": int(np.sum(opened & np.isfinite(arrival).all(axis=1))),
+    }

@@ -156,11 +156,12 @@ class CoupledFlowModel(FlowModel):
         self.opening_gap = float(initial_force[self.initially_closed].mean()) / grains.k_n
         self.detached = np.zeros(net.n_pipes, bool)  # F <= 0 at some accepted step (literal Eq. 14)
         self.max_gap = np.full(net.n_pipes, -np.inf)
+        self.opened_time = np.full(net.n_pipes, np.inf)  # when each contact first counted as opened
         self.volume_rate = np.zeros(net.n_domains)  # dV/dt of the last accepted step
         # a list to append a PVEvaluation to at every P-V evaluation (benchmarks/huang_pv_log.py); None: off
         self.pv_log: list | None = None
         self._predicting = False  # front-logic solves use dV = volume_rate x dt
-        self._update_apertures()
+        self._update_apertures(0.0)
 
     # ---- grains ----------------------------------------------------------------------------
     def dem_cycles(self, dt: float) -> int:
@@ -200,7 +201,9 @@ class CoupledFlowModel(FlowModel):
         function gives V^n and V^{n+1}, so the Eq. 15 mass balance is exact either way)."""
         return np.maximum(self.geometry.volumes(positions), self.volume_floor)
 
-    def _update_apertures(self) -> None:
+    def _update_apertures(self, t: float) -> None:
+        """Eqs. 13-14 apertures from the live contact forces and gaps at time t; records
+        detachments, the largest separations and when each contact first counted as opened."""
         g = self.contact_pairs
         force = self.grains.normal_forces(g)
         gap = contact_gaps(self.positions, self.grains.radii, g)
@@ -208,6 +211,7 @@ class CoupledFlowModel(FlowModel):
         self.detached |= self.initially_closed & self.coupling.aperture_law.opened(force)
         self.detached_gap = np.where(force > 0.0, -np.inf, gap)  # now; -inf where in compression
         self.max_gap = np.maximum(self.max_gap, self.detached_gap)
+        self.opened_time[self.opened & np.isinf(self.opened_time)] = t
 
     @property
     def opened(self) -> np.ndarray:
@@ -337,4 +341,4 @@ class CoupledFlowModel(FlowModel):
         self.volume[:] = volume
         self.reference_volume = volume
         self.volume_change[:] = 0.0
-        self._update_apertures()
+        self._update_apertures(state.t)

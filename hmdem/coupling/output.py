@@ -10,7 +10,7 @@ import numpy as np
 from ..plots import plot_force_chains
 from ..report import pattern_fractal_dimension, radial_pattern_dimension, write_run
 from .geometry import contact_gaps
-from .micromechanics import lowest_path_resistance, pipe_resistance
+from .micromechanics import fracture_chronology, lowest_path_resistance, pipe_resistance
 from .radial import classify_radial_regime, domain_perimeter
 
 GPA = 1e9
@@ -43,6 +43,7 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
         "n_opened_contacts": int(opened.sum()),
         "n_open_contacts_at_end": int(model.open_now.sum()),
         "n_detached_contacts": int(model.detached.sum()),
+        **fracture_chronology(model.opened_time, net.pipe_domains, state.invasion_time),
         "opening_gap_m": model.opening_gap,
         "n_floored_domains": int(model.floored.sum()),
         "n_initial_contacts": int(model.initially_closed.sum()),
@@ -67,7 +68,7 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
 
     def files(tmp: Path) -> None:
         np.savez_compressed(tmp / "fractures.npz", opened=opened, open_at_end=model.open_now, detached=model.detached,
-                            max_gap=model.max_gap,
+                            max_gap=model.max_gap, opened_time=model.opened_time,
                             pipe_grains=g, gap=gap,
                             aperture=net.pipe_aperture, initially_closed=model.initially_closed,
                             positions=positions, initial_positions=initial_positions, radii=grains.radii,
