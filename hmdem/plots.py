@@ -10,7 +10,9 @@ matplotlib.use("Agg")
 warnings.filterwarnings("ignore", message="Unable to import Axes3D")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.cm import ScalarMappable  # noqa: E402
 from matplotlib.collections import LineCollection, PatchCollection  # noqa: E402
+from matplotlib.colors import Normalize  # noqa: E402
 from matplotlib.patches import Circle  # noqa: E402
 from matplotlib.tri import Triangulation  # noqa: E402
 
@@ -87,6 +89,38 @@ def plot_force_chains(path, positions: np.ndarray, radii: np.ndarray, pairs: np.
         lc = LineCollection(segments, linewidths=0.3 + 2.5 * scale, cmap="inferno_r", array=forces)
         ax.add_collection(lc)
         fig.colorbar(lc, ax=ax, label="normal contact force [N per m]")
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("y [mm]")
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def plot_fracture_chronology(path, net: Network, saturation: np.ndarray, radii, segments: np.ndarray,
+                             opened_time: np.ndarray, ahead: np.ndarray, title: str) -> None:
+    """Opened contacts (``segments`` (k, 2, 2) [m]) coloured by the time they opened, over the
+    invaded pattern (grey by saturation); solid where a contact opened ahead of the fluid (before
+    either of its pores filled), dotted where the fluid was there first."""
+    tri, s = _domain_triangulation(net, saturation)
+    fig, ax = plt.subplots(figsize=(6.4, 6))
+    ax.tripcolor(tri, facecolors=s, cmap="Greys", vmin=0, vmax=2.5, edgecolors="none")
+    _grains(ax, net, radii)
+    if len(segments):
+        t_max = float(np.max(opened_time))
+        unit, factor = ("ms", 1e3) if t_max >= 1e-3 else ("µs", 1e6)
+        t_scaled = np.asarray(opened_time) * factor
+        norm = Normalize(vmin=0.0, vmax=max(t_max * factor, 1e-12))
+        for mask, style, label in ((ahead, "solid", "opened ahead of the fluid"), (~ahead, "dotted", "opened behind it")):
+            if mask.any():
+                lc = LineCollection(np.asarray(segments)[mask] * 1e3, cmap="viridis", norm=norm, linewidths=1.4,
+                                    linestyles=style, label=f"{label} ({int(mask.sum())})")
+                lc.set_array(t_scaled[mask])
+                ax.add_collection(lc)
+        fig.colorbar(ScalarMappable(norm=norm, cmap="viridis"), ax=ax, label=f"opened at t [{unit}]")
+        ax.legend(loc="upper right", fontsize=7)
     ax.set_aspect("equal")
     ax.autoscale_view()
     ax.set_xlabel("x [mm]")

@@ -149,7 +149,7 @@ def test_radial_run_directory_contract(tmp_path):
     assert main(["radial", "--case", "B3", "--max-steps", "12", "--out", str(out), "--quiet"]) == 0
     names = {p.name for p in out.iterdir()}
     assert {"config.toml", "summary.json", "timeseries.csv", "network.npz", "state.npz", "pattern.png",
-            "pressure.png", "domains.vtu", "fractures.npz", "force_chains.png"} <= names
+            "pressure.png", "domains.vtu", "fractures.npz", "force_chains.png", "fractures.png"} <= names
     summary = json.loads((out / "summary.json").read_text())
     for key in ("n_opened_contacts", "peak_injection_pressure_pa", "regime", "mean_pv_iterations", "dem_cycles",
                 "lowest_path_resistance_gpa_s_per_m2", "dissipated_fraction", "pv_pocket_attempts"):

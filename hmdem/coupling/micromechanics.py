@@ -40,21 +40,25 @@ def lowest_path_resistance(net: Network, pipes: np.ndarray, resistance: np.ndarr
     return float(np.min(dist[np.asarray(targets)]))
 
 
+def fluid_arrival(pipe_domains: np.ndarray, invasion_time: np.ndarray) -> np.ndarray:
+    """(m, 2) invasion times of each pipe's two domains; inf for the outer face (-1) and for
+    domains not invaded."""
+    return np.r_[invasion_time, np.inf][pipe_domains]
+
+
 def fracture_chronology(opened_time: np.ndarray, pipe_domains: np.ndarray, invasion_time: np.ndarray) -> dict:
     """When the opened contacts opened relative to the fluid (seed 004 §4.2: in B3 "fractures
     [form] before fluid infiltration ... guiding the fluid"; in A3 and B1 they "remain within
-    the fluid infiltration zone").
+    the fluid infiltration zone"; decisions #48).
 
     ``opened_time`` per pipe (inf: never opened), ``pipe_domains`` (m, 2) with -1 for the outer
     face, ``invasion_time`` per domain (inf: not invaded). A contact opened *ahead of the fluid*
     when it opened before either of its two domains was invaded; it lies *in the invaded zone*
     when both of its domains are invaded at the end."""
     opened = np.isfinite(opened_time)
-    padded = np.r_[invasion_time, np.inf]  # index -1 (outer face): never invaded
-    arrival = padded[pipe_domains]
-    first_arrival = arrival.min(axis=1)
+    arrival = fluid_arrival(pipe_domains, invasion_time)
     return {
         "first_opening_time_s": float(opened_time[opened].min()) if opened.any() else float("nan"),
-        "n_opened_ahead_of_fluid": int(np.sum(opened & (opened_time < first_arrival))),
+        "n_opened_ahead_of_fluid": int(np.sum(opened & (opened_time < arrival.min(axis=1)))),
         "n_opened_in_invaded_zone": int(np.sum(opened & np.isfinite(arrival).all(axis=1))),
     }

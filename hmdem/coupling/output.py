@@ -7,10 +7,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..plots import plot_force_chains
+from ..plots import plot_force_chains, plot_fracture_chronology
 from ..report import pattern_fractal_dimension, radial_pattern_dimension, write_run
 from .geometry import contact_gaps
-from .micromechanics import fracture_chronology, lowest_path_resistance, pipe_resistance
+from .micromechanics import fluid_arrival, fracture_chronology, lowest_path_resistance, pipe_resistance
 from .radial import classify_radial_regime, domain_perimeter
 
 GPA = 1e9
@@ -36,6 +36,7 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
     # R_s on the final apertures and saturations (Figs. 15-16 report them in GPa s / m^2)
     resistance = pipe_resistance(net, sc.setup.fluids, state.saturation, model.pipes)
     path = lowest_path_resistance(net, model.pipes, resistance, net.inlet_domains, net.outlet_domains)
+    chronology = fracture_chronology(model.opened_time, net.pipe_domains, state.invasion_time)
     extra = {
         "regime": classify_radial_regime(int(opened.sum()), d_f),
         "fractal_dimension": d_f,
@@ -43,7 +44,7 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
         "n_opened_contacts": int(opened.sum()),
         "n_open_contacts_at_end": int(model.open_now.sum()),
         "n_detached_contacts": int(model.detached.sum()),
-        **fracture_chronology(model.opened_time, net.pipe_domains, state.invasion_time),
+        **chronology,
         "opening_gap_m": model.opening_gap,
         "n_floored_domains": int(model.floored.sum()),
         "n_initial_contacts": int(model.initially_closed.sum()),
@@ -77,6 +78,12 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
                           f"{sc.case.name}: contact forces at t = {state.t:.4g} s "
                           f"({int(opened.sum())} opened contacts in red on pattern.png)",
                           fixed=sc.fixed)
+        ahead = model.opened_time[opened] < fluid_arrival(net.pipe_domains[opened], state.invasion_time).min(axis=1)
+        plot_fracture_chronology(tmp / "fractures.png", net, state.saturation, grains.radii, positions[g[opened]],
+                                 model.opened_time[opened], ahead,
+                                 f"{sc.case.name}: {int(opened.sum())} opened contacts by t = {state.t:.4g} s\n"
+                                 f"{chronology['n_opened_ahead_of_fluid']} ahead of the fluid, "
+                                 f"{chronology['n_opened_in_invaded_zone']} inside the invaded zone")
 
     config = {"coupling": {k: v for k, v in vars(sc.coupling).items() if k != "aperture_law"},
               "aperture_law": vars(sc.coupling.aperture_law),
