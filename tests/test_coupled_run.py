@@ -175,6 +175,27 @@ def test_reduced_a1_opens_no_contact_and_its_pressure_rises(reduced_runs):
     assert np.all(np.diff(on_grid) >= 0.0)
 
 
+def test_dry_sample_holds_every_contact_for_as_long_as_a1_runs(reduced_runs, small_sample):
+    # control for H1: without fluid forces the settled sample stays at rest for the reduced A1's
+    # whole duration, so a contact that opens in a coupled run is opened by the fluid, not by the
+    # sample's own relaxation (at paper size: none of 2,737 contacts detached in 5.1 ms, A1's
+    # 5 opened contacts sit in the liquid behind the front at -8 to -33 kPa, decisions #48)
+    duration = reduced_runs["A1"][2].t
+    sc = build_radial_scenario(RADIAL_CASES["A1"], packing=small_sample)
+    grains = start_grains(sc)
+    pairs = sc.net.pipe_grains
+    closed = grains.normal_forces(pairs) > 0.0
+    grains.set_external_forces(np.zeros((len(grains.radii), 2)))
+    cycles = int(np.ceil(duration / grains.timestep))
+    start = grains.time
+    detached = np.zeros(len(pairs), bool)
+    for _ in range(10):
+        grains.run(cycles // 10 + 1)
+        detached |= closed & (grains.normal_forces(pairs) <= 0.0)
+    assert grains.time - start >= duration
+    assert not detached.any()
+
+
 def test_reduced_breakthrough_time_ratio_a1_a3(reduced_runs):
     # H6: t_f(A1) / t_f(A3) = 20 +- 5 (the injection velocity ratio 165.80 / 8.22)
     ratio = reduced_runs["A1"][2].t / reduced_runs["A3"][2].t
