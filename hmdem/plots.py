@@ -32,6 +32,19 @@ def _grains(ax, net: Network, radii):
     ax.add_collection(PatchCollection(circles, facecolor="none", edgecolor="0.6", linewidth=0.2))
 
 
+def _finish_sample_plane(fig, ax, path, title: str, autoscale: bool = True) -> None:
+    """Equal axes in mm, the title, and the figure written to ``path`` and closed."""
+    ax.set_aspect("equal")
+    if autoscale:
+        ax.autoscale_view()
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("y [mm]")
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
 def plot_pattern(path, net: Network, saturation: np.ndarray, title: str, radii=None, overlay=None) -> None:
     """Invaded domains drawn as polygons (union of their triangles), coloured by saturation;
     ``overlay``: segments (k, 2, 2) [m] drawn in red (opened contacts of a coupled run)."""
@@ -46,14 +59,8 @@ def plot_pattern(path, net: Network, saturation: np.ndarray, title: str, radii=N
         c = net.domain_centroid[ids] * 1e3
         ax.plot(c[:, 0], c[:, 1], ".", color=colour, ms=3, label=label)
     fig.colorbar(pc, ax=ax, label="invading saturation S")
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [mm]")
-    ax.set_ylabel("y [mm]")
-    ax.set_title(title, fontsize=9)
     ax.legend(loc="upper right", fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    _finish_sample_plane(fig, ax, path, title, autoscale=False)
 
 
 def plot_pressure(path, net: Network, pressure: np.ndarray, times, p_in, title: str) -> None:
@@ -89,14 +96,7 @@ def plot_force_chains(path, positions: np.ndarray, radii: np.ndarray, pairs: np.
         lc = LineCollection(segments, linewidths=0.3 + 2.5 * scale, cmap="inferno_r", array=forces)
         ax.add_collection(lc)
         fig.colorbar(lc, ax=ax, label="normal contact force [N per m]")
-    ax.set_aspect("equal")
-    ax.autoscale_view()
-    ax.set_xlabel("x [mm]")
-    ax.set_ylabel("y [mm]")
-    ax.set_title(title, fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    _finish_sample_plane(fig, ax, path, title)
 
 
 def plot_fracture_chronology(path, net: Network, saturation: np.ndarray, radii, segments: np.ndarray,
@@ -121,11 +121,4 @@ def plot_fracture_chronology(path, net: Network, saturation: np.ndarray, radii, 
                 ax.add_collection(lc)
         fig.colorbar(ScalarMappable(norm=norm, cmap="viridis"), ax=ax, label=f"opened at t [{unit}]")
         ax.legend(loc="upper right", fontsize=7)
-    ax.set_aspect("equal")
-    ax.autoscale_view()
-    ax.set_xlabel("x [mm]")
-    ax.set_ylabel("y [mm]")
-    ax.set_title(title, fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    _finish_sample_plane(fig, ax, path, title)
