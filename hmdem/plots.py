@@ -113,7 +113,8 @@ def plot_fracture_chronology(path, net: Network, saturation: np.ndarray, radii, 
         unit, factor = ("ms", 1e3) if t_max >= 1e-3 else ("µs", 1e6)
         t_scaled = np.asarray(opened_time) * factor
         norm = Normalize(vmin=0.0, vmax=max(t_max * factor, 1e-12))
-        for mask, style, label in ((ahead, "solid", "opened ahead of the fluid"), (~ahead, "dotted", "opened behind it")):
+        styles = ((ahead, "solid", "opened ahead of the fluid"), (~ahead, "dotted", "opened behind it"))
+        for mask, style, label in styles:
             if mask.any():
                 lc = LineCollection(np.asarray(segments)[mask] * 1e3, cmap="viridis", norm=norm, linewidths=1.4,
                                     linestyles=style, label=f"{label} ({int(mask.sum())})")

@@ -178,8 +178,9 @@ def test_reduced_a1_opens_no_contact_and_its_pressure_rises(reduced_runs):
 def test_dry_sample_holds_every_contact_for_as_long_as_a1_runs(reduced_runs, small_sample):
     # control for H1: without fluid forces the settled sample stays at rest for the reduced A1's
     # whole duration, so a contact that opens in a coupled run is opened by the fluid, not by the
-    # sample's own relaxation (at paper size: none of 2,737 contacts detached in 5.1 ms, A1's
-    # 5 opened contacts sit in the liquid behind the front at -8 to -33 kPa, decisions #48)
+    # sample's own relaxation (at paper size none of 2,737 contacts detached in 700,000 cycles,
+    # A1's whole 34 ms, while A1's 5 opened contacts sit in liquid behind the front at -8 to
+    # -33 kPa: BENCHMARKS.md)
     duration = reduced_runs["A1"][2].t
     sc = build_radial_scenario(RADIAL_CASES["A1"], packing=small_sample)
     grains = start_grains(sc)

@@ -82,6 +82,14 @@ def test_a3_fractures_near_the_port(huang):
     assert s["n_opened_contacts"] > 0  # H2
 
 
+def test_a3_fractures_stay_in_the_infiltration_zone(huang):
+    # H2: A3's fractures "remain within the fluid infiltration zone, not altering the circular flow
+    # front": at breakthrough most opened contacts have both pores filled (decisions #48;
+    # 318 of 349 on 2026-11-24)
+    s = huang("A3")[0]
+    assert s["n_opened_in_invaded_zone"] > s["n_opened_contacts"] / 2
+
+
 @pytest.mark.xfail(strict=True, reason="known model discrepancy, issue 3 open: A3 peaks at 1.14 MPa at breakthrough "
                    "(paper 0.86), A1 at 100 kPa (paper 0.13 MPa), ratio 11.3 (paper 6.6): A3 rises to "
                    "breakthrough instead of dropping once contacts open; reduced sample 16.0")

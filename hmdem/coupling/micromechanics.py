@@ -46,6 +46,11 @@ def fluid_arrival(pipe_domains: np.ndarray, invasion_time: np.ndarray) -> np.nda
     return np.r_[invasion_time, np.inf][pipe_domains]
 
 
+def opened_ahead_of_fluid(opened_time: np.ndarray, pipe_domains: np.ndarray, invasion_time: np.ndarray) -> np.ndarray:
+    """Pipes whose contact opened before either of their two domains was invaded."""
+    return opened_time < fluid_arrival(pipe_domains, invasion_time).min(axis=1)
+
+
 def fracture_chronology(opened_time: np.ndarray, pipe_domains: np.ndarray, invasion_time: np.ndarray) -> dict:
     """When the opened contacts opened relative to the fluid (seed 004 §4.2: in B3 "fractures
     [form] before fluid infiltration ... guiding the fluid"; in A3 and B1 they "remain within
@@ -59,6 +64,6 @@ def fracture_chronology(opened_time: np.ndarray, pipe_domains: np.ndarray, invas
     arrival = fluid_arrival(pipe_domains, invasion_time)
     return {
         "first_opening_time_s": float(opened_time[opened].min()) if opened.any() else float("nan"),
-        "n_opened_ahead_of_fluid": int(np.sum(opened & (opened_time < arrival.min(axis=1)))),
+        "n_opened_ahead_of_fluid": int(np.sum(opened_ahead_of_fluid(opened_time, pipe_domains, invasion_time))),
         "n_opened_in_invaded_zone": int(np.sum(opened & np.isfinite(arrival).all(axis=1))),
     }

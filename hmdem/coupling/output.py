@@ -10,7 +10,7 @@ import numpy as np
 from ..plots import plot_force_chains, plot_fracture_chronology
 from ..report import pattern_fractal_dimension, radial_pattern_dimension, write_run
 from .geometry import contact_gaps
-from .micromechanics import fluid_arrival, fracture_chronology, lowest_path_resistance, pipe_resistance
+from .micromechanics import fracture_chronology, lowest_path_resistance, opened_ahead_of_fluid, pipe_resistance
 from .radial import classify_radial_regime, domain_perimeter
 
 GPA = 1e9
@@ -78,7 +78,7 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
                           f"{sc.case.name}: contact forces at t = {state.t:.4g} s "
                           f"({int(opened.sum())} opened contacts in red on pattern.png)",
                           fixed=sc.fixed)
-        ahead = model.opened_time[opened] < fluid_arrival(net.pipe_domains[opened], state.invasion_time).min(axis=1)
+        ahead = opened_ahead_of_fluid(model.opened_time, net.pipe_domains, state.invasion_time)[opened]
         plot_fracture_chronology(tmp / "fractures.png", net, state.saturation, grains.radii, positions[g[opened]],
                                  model.opened_time[opened], ahead,
                                  f"{sc.case.name}: {int(opened.sum())} opened contacts by t = {state.t:.4g} s\n"
