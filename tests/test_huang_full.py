@@ -110,6 +110,15 @@ def test_b3_fracturing_dominated(huang):
     assert huang("B3")[0]["regime"] == "fracturing-dominated"
 
 
+def test_b3_fractures_precede_the_fluid(huang):
+    # H4: B3's injection pressure "creates fractures before fluid infiltration, guiding the
+    # fluid": most opened contacts opened before either of their pores filled, and most lie
+    # beyond the invaded zone at breakthrough (decisions #48; 753 and 266 of 797 on 2026-11-24)
+    s = huang("B3")[0]
+    assert s["n_opened_ahead_of_fluid"] > s["n_opened_contacts"] / 2
+    assert s["n_opened_in_invaded_zone"] < s["n_opened_contacts"] / 2
+
+
 @pytest.mark.xfail(strict=True, reason="known model discrepancy, issue 3 open: B3 has an early peak (3.5 MPa at "
                    "1.6 us, down to 2.2 MPa by 0.1 ms) but then rises to breakthrough (3.0 -> 6.0 MPa on a "
                    "10-point grid) as the viscous invaded zone grows; the paper peaks at 9.7 MPa and plateaus "
