@@ -71,6 +71,7 @@ def resume(checkpoint: Path):
         model.pocket_newton.__dict__.setdefault(name, value)
     # a checkpoint saved before contacts' opening times were kept: those already opened get nan
     model.__dict__.setdefault("opened_time", np.where(model.opened, np.nan, np.inf))
+    model.__dict__.setdefault("wetted_time", np.where(data["state"].saturation > 0.0, np.nan, np.inf))
     return model, data["state"]
 
 

@@ -100,20 +100,23 @@ def plot_force_chains(path, positions: np.ndarray, radii: np.ndarray, pairs: np.
 
 
 def plot_fracture_chronology(path, net: Network, saturation: np.ndarray, radii, segments: np.ndarray,
-                             opened_time: np.ndarray, ahead: np.ndarray, title: str) -> None:
+                             opened_time: np.ndarray, reached: np.ndarray, before_fluid: np.ndarray,
+                             title: str) -> None:
     """Opened contacts (``segments`` (k, 2, 2) [m]) coloured by the time they opened, over the
-    invaded pattern (grey by saturation); solid where a contact opened ahead of the fluid (before
-    either of its pores filled), dotted where the fluid was there first."""
+    invaded pattern (grey by saturation): solid where the fluid filled one of the contact's pores
+    after it opened, dotted where the fluid was there first, dashed where it never came."""
     tri, s = _domain_triangulation(net, saturation)
     fig, ax = plt.subplots(figsize=(6.4, 6))
     ax.tripcolor(tri, facecolors=s, cmap="Greys", vmin=0, vmax=2.5, edgecolors="none")
     _grains(ax, net, radii)
     if len(segments):
-        t_max = float(np.max(opened_time))
+        t_max = float(np.nanmax(opened_time))
         unit, factor = ("ms", 1e3) if t_max >= 1e-3 else ("µs", 1e6)
         t_scaled = np.asarray(opened_time) * factor
         norm = Normalize(vmin=0.0, vmax=max(t_max * factor, 1e-12))
-        styles = ((ahead, "solid", "opened ahead of the fluid"), (~ahead, "dotted", "opened behind it"))
+        styles = ((before_fluid, "solid", "opened, then the fluid came"),
+                  (reached & ~before_fluid, "dotted", "the fluid came first"),
+                  (~reached, "dashed", "the fluid never came"))
         for mask, style, label in styles:
             if mask.any():
                 lc = LineCollection(np.asarray(segments)[mask] * 1e3, cmap="viridis", norm=norm, linewidths=1.4,

@@ -108,22 +108,36 @@ def test_pipe_resistance_and_lowest_path_sum():
 
 
 def test_fracture_chronology_against_the_fluid_arrival():
-    # seed 004 §4.2: B3's fractures form "before fluid infiltration"; A3's and B1's "remain within
-    # the fluid infiltration zone". Pipe 0 opened before either of its domains filled, pipe 1
-    # after its first domain filled, pipe 2 (on the outer face) before its one domain filled,
-    # pipe 3 never; domains 0 and 1 are invaded at the end, domain 2 is not
+    # decisions #48. Fluid enters domains 0, 1 and 3 at 2, 3 and 5 us and fills them at 3, 4 and
+    # 6 us; it enters domain 2 at 6 us but never fills it.
+    # pipe 0 (0|1) opened at 1 us, before fluid entered either pore: reached, before, in the zone
+    # pipe 1 (1|2) opened at 2.5 us, before fluid entered pore 1: reached, before, not in the zone
+    # pipe 2 (2|outer face) opened at 6 us, in the step fluid entered pore 2: reached, not before
+    # pipe 3 (3|outer face) opened at 7 us, after pore 3 filled: reached, not before, not in the zone
+    # pipe 4 (0|3) never opened although both its pores filled
     from hmdem.coupling.micromechanics import fracture_chronology
+    from hmdem.network.network import OUTSIDE
 
-    pipe_domains = np.array([[0, 1], [1, 2], [2, -1], [0, 2]])
-    opened_time = np.array([1e-6, 5e-6, 2e-6, np.inf])
-    invasion_time = np.array([3e-6, 4e-6, np.inf])
-    c = fracture_chronology(opened_time, pipe_domains, invasion_time)
-    assert c == {"first_opening_time_s": 1e-6, "n_opened_ahead_of_fluid": 2, "n_opened_in_invaded_zone": 1}
-    # opening in the step that fills a domain is not ahead of the fluid
-    same_step = fracture_chronology(np.array([3e-6, np.inf, np.inf, np.inf]), pipe_domains, invasion_time)
-    assert same_step["n_opened_ahead_of_fluid"] == 0
-    nothing = fracture_chronology(np.full(4, np.inf), pipe_domains, invasion_time)
-    assert nothing["n_opened_ahead_of_fluid"] == 0 and np.isnan(nothing["first_opening_time_s"])
+    pipe_domains = np.array([[0, 1], [1, 2], [2, OUTSIDE], [3, OUTSIDE], [0, 3]])
+    opened_time = np.array([1e-6, 2.5e-6, 6e-6, 7e-6, np.inf])
+    opened = np.isfinite(opened_time)
+    wetted_time = np.array([2e-6, 3e-6, 6e-6, 5e-6])
+    invasion_time = np.array([3e-6, 4e-6, np.inf, 6e-6])
+    c = fracture_chronology(opened, opened_time, pipe_domains, wetted_time, invasion_time)
+    assert c == {"first_opening_time_s": 1e-6, "n_opened_reached_by_fluid": 4, "n_opened_before_fluid": 2,
+                 "n_opened_in_invaded_zone": 1}
+    # a pore the fluid never entered does not reach its contacts; the outer face is not a pore
+    dry_2 = wetted_time.copy()
+    dry_2[2] = np.inf
+    c = fracture_chronology(opened, opened_time, pipe_domains, dry_2, invasion_time)
+    assert c["n_opened_reached_by_fluid"] == 3 and c["n_opened_before_fluid"] == 2
+    # a contact counted as opened whose time is unknown (nan) still counts as opened and reached
+    unknown = np.array([np.nan, np.inf, np.inf, np.inf, np.inf])
+    c = fracture_chronology(np.array([True, False, False, False, False]), unknown, pipe_domains, wetted_time,
+                            invasion_time)
+    assert c["n_opened_reached_by_fluid"] == 1 and c["n_opened_before_fluid"] == 0
+    nothing = fracture_chronology(np.zeros(5, bool), np.full(5, np.inf), pipe_domains, wetted_time, invasion_time)
+    assert nothing["n_opened_reached_by_fluid"] == 0 and np.isnan(nothing["first_opening_time_s"])
 
 
 def test_quasi_newton_converges_where_substitution_diverges():

@@ -110,13 +110,13 @@ def test_b3_fracturing_dominated(huang):
     assert huang("B3")[0]["regime"] == "fracturing-dominated"
 
 
-def test_b3_fractures_precede_the_fluid(huang):
-    # H4: B3's injection pressure "creates fractures before fluid infiltration, guiding the
-    # fluid": most opened contacts opened before either of their pores filled, and most lie
-    # beyond the invaded zone at breakthrough (decisions #48; 753 and 266 of 797 on 2026-11-24)
+def test_b3_fractures_open_before_the_fluid_comes(huang):
+    # H4: B3's injection pressure "creates fractures before fluid infiltration, guiding the fluid
+    # to penetrate the fracturing domains at later stages": of the opened contacts the fluid
+    # reached, most had opened before it entered either of their pores (decisions #48; by 0.2 ms
+    # 112 of 143, reduced B3 27 of 35; at breakthrough, with arrival read as filling, 271 of 315)
     s = huang("B3")[0]
-    assert s["n_opened_ahead_of_fluid"] > s["n_opened_contacts"] / 2
-    assert s["n_opened_in_invaded_zone"] < s["n_opened_contacts"] / 2
+    assert s["n_opened_before_fluid"] > s["n_opened_reached_by_fluid"] / 2 > 0
 
 
 @pytest.mark.xfail(strict=True, reason="known model discrepancy, issue 3 open: B3 has an early peak (3.5 MPa at "

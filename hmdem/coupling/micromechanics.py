@@ -13,7 +13,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from ..flow.fluids import FluidPair, conductance
-from ..network.network import Network
+from ..network.network import OUTSIDE, Network
 
 
 def pipe_resistance(net: Network, fluids: FluidPair, saturation: np.ndarray, pipes: np.ndarray) -> np.ndarray:
@@ -40,30 +40,40 @@ def lowest_path_resistance(net: Network, pipes: np.ndarray, resistance: np.ndarr
     return float(np.min(dist[np.asarray(targets)]))
 
 
-def fluid_arrival(pipe_domains: np.ndarray, invasion_time: np.ndarray) -> np.ndarray:
-    """(m, 2) invasion times of each pipe's two domains; inf for the outer face (-1) and for
-    domains not invaded."""
-    return np.r_[invasion_time, np.inf][pipe_domains]
+def pipe_pore_times(pipe_domains: np.ndarray, domain_time: np.ndarray) -> np.ndarray:
+    """(m, 2) a per-domain time (fluid entry, filling) read at each pipe's two domains; inf for
+    the outer face."""
+    at_pores = domain_time[np.where(pipe_domains == OUTSIDE, 0, pipe_domains)]
+    return np.where(pipe_domains == OUTSIDE, np.inf, at_pores)
 
 
-def opened_ahead_of_fluid(opened_time: np.ndarray, pipe_domains: np.ndarray, invasion_time: np.ndarray) -> np.ndarray:
-    """Pipes whose contact opened before either of their two domains was invaded."""
-    return opened_time < fluid_arrival(pipe_domains, invasion_time).min(axis=1)
+def fracture_timing(opened: np.ndarray, opened_time: np.ndarray, pipe_domains: np.ndarray,
+                    wetted_time: np.ndarray, invasion_time: np.ndarray) -> dict:
+    """Masks over the pipes (decisions #48): ``reached``, opened contacts into one of whose two
+    domains invading fluid had entered by the end (``wetted_time``, inf: never); ``before_fluid``,
+    those of them that opened before fluid entered either domain (a contact opening in the step
+    the fluid enters is not); ``in_invaded_zone``, opened contacts whose two domains were both
+    filled by the end (``invasion_time``, S = 1)."""
+    first_entry = pipe_pore_times(pipe_domains, wetted_time).min(axis=1)
+    reached = opened & np.isfinite(first_entry)
+    filled = np.isfinite(pipe_pore_times(pipe_domains, invasion_time)).all(axis=1)
+    return {"reached": reached, "before_fluid": reached & (opened_time < first_entry),
+            "in_invaded_zone": opened & filled}
 
 
-def fracture_chronology(opened_time: np.ndarray, pipe_domains: np.ndarray, invasion_time: np.ndarray) -> dict:
-    """When the opened contacts opened relative to the fluid (seed 004 §4.2: in B3 "fractures
-    [form] before fluid infiltration ... guiding the fluid"; in A3 and B1 they "remain within
-    the fluid infiltration zone"; decisions #48).
-
-    ``opened_time`` per pipe (inf: never opened), ``pipe_domains`` (m, 2) with -1 for the outer
-    face, ``invasion_time`` per domain (inf: not invaded). A contact opened *ahead of the fluid*
-    when it opened before either of its two domains was invaded; it lies *in the invaded zone*
-    when both of its domains are invaded at the end."""
-    opened = np.isfinite(opened_time)
-    arrival = fluid_arrival(pipe_domains, invasion_time)
+def fracture_chronology(opened: np.ndarray, opened_time: np.ndarray, pipe_domains: np.ndarray,
+                        wetted_time: np.ndarray, invasion_time: np.ndarray) -> dict:
+    """Summary keys on when the opened contacts opened relative to the fluid (seed 004 §4.2: B3's
+    pressure "creates fractures before fluid infiltration, guiding the fluid to penetrate the
+    fracturing domains at later stages"; A3's and B1's fractures "remain within the fluid
+    infiltration zone"). ``opened`` and ``opened_time`` per pipe (the end of the accepted step
+    at which the contact first counted as opened), ``pipe_domains`` (m, 2) with OUTSIDE for the
+    outer face, ``wetted_time`` and ``invasion_time`` per domain: see :func:`fracture_timing`."""
+    masks = fracture_timing(opened, opened_time, pipe_domains, wetted_time, invasion_time)
+    times = opened_time[opened]
     return {
-        "first_opening_time_s": float(opened_time[opened].min()) if opened.any() else float("nan"),
-        "n_opened_ahead_of_fluid": int(np.sum(opened_ahead_of_fluid(opened_time, pipe_domains, invasion_time))),
-        "n_opened_in_invaded_zone": int(np.sum(opened & np.isfinite(arrival).all(axis=1))),
+        "first_opening_time_s": float(np.nanmin(times)) if np.isfinite(times).any() else float("nan"),
+        "n_opened_reached_by_fluid": int(masks["reached"].sum()),
+        "n_opened_before_fluid": int(masks["before_fluid"].sum()),
+        "n_opened_in_invaded_zone": int(masks["in_invaded_zone"].sum()),
     }

@@ -157,6 +157,7 @@ class CoupledFlowModel(FlowModel):
         self.detached = np.zeros(net.n_pipes, bool)  # F <= 0 at some accepted step (literal Eq. 14)
         self.max_gap = np.full(net.n_pipes, -np.inf)
         self.opened_time = np.full(net.n_pipes, np.inf)  # when each contact first counted as opened
+        self.wetted_time = np.full(net.n_domains, np.inf)  # when invading fluid first entered each domain
         self.volume_rate = np.zeros(net.n_domains)  # dV/dt of the last accepted step
         # a list to append a PVEvaluation to at every P-V evaluation (benchmarks/huang_pv_log.py); None: off
         self.pv_log: list | None = None
@@ -341,4 +342,5 @@ class CoupledFlowModel(FlowModel):
         self.volume[:] = volume
         self.reference_volume = volume
         self.volume_change[:] = 0.0
+        self.wetted_time[(state.saturation > 0.0) & np.isinf(self.wetted_time)] = state.t
         self._update_apertures(state.t)

@@ -10,7 +10,7 @@ import numpy as np
 from ..plots import plot_force_chains, plot_fracture_chronology
 from ..report import pattern_fractal_dimension, radial_pattern_dimension, write_run
 from .geometry import contact_gaps
-from .micromechanics import fracture_chronology, lowest_path_resistance, opened_ahead_of_fluid, pipe_resistance
+from .micromechanics import fracture_chronology, fracture_timing, lowest_path_resistance, pipe_resistance
 from .radial import classify_radial_regime, domain_perimeter
 
 GPA = 1e9
@@ -36,7 +36,8 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
     # R_s on the final apertures and saturations (Figs. 15-16 report them in GPa s / m^2)
     resistance = pipe_resistance(net, sc.setup.fluids, state.saturation, model.pipes)
     path = lowest_path_resistance(net, model.pipes, resistance, net.inlet_domains, net.outlet_domains)
-    chronology = fracture_chronology(model.opened_time, net.pipe_domains, state.invasion_time)
+    when = (opened, model.opened_time, net.pipe_domains, model.wetted_time, state.invasion_time)
+    chronology = fracture_chronology(*when)
     extra = {
         "regime": classify_radial_regime(int(opened.sum()), d_f),
         "fractal_dimension": d_f,
@@ -70,6 +71,7 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
     def files(tmp: Path) -> None:
         np.savez_compressed(tmp / "fractures.npz", opened=opened, open_at_end=model.open_now, detached=model.detached,
                             max_gap=model.max_gap, opened_time=model.opened_time,
+                            pore_wetted_time=model.wetted_time,
                             pipe_grains=g, gap=gap,
                             aperture=net.pipe_aperture, initially_closed=model.initially_closed,
                             positions=positions, initial_positions=initial_positions, radii=grains.radii,
@@ -78,11 +80,12 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
                           f"{sc.case.name}: contact forces at t = {state.t:.4g} s "
                           f"({int(opened.sum())} opened contacts in red on pattern.png)",
                           fixed=sc.fixed)
-        ahead = opened_ahead_of_fluid(model.opened_time, net.pipe_domains, state.invasion_time)[opened]
+        timing = fracture_timing(*when)
         plot_fracture_chronology(tmp / "fractures.png", net, state.saturation, grains.radii, positions[g[opened]],
-                                 model.opened_time[opened], ahead,
-                                 f"{sc.case.name}: {int(opened.sum())} opened contacts by t = {state.t:.4g} s\n"
-                                 f"{chronology['n_opened_ahead_of_fluid']} ahead of the fluid, "
+                                 model.opened_time[opened], timing["reached"][opened], timing["before_fluid"][opened],
+                                 f"{sc.case.name}: {int(opened.sum())} opened contacts by t = {state.t:.4g} s; "
+                                 f"{chronology['n_opened_reached_by_fluid']} reached by the fluid,\n"
+                                 f"{chronology['n_opened_before_fluid']} of them opened before it came; "
                                  f"{chronology['n_opened_in_invaded_zone']} inside the invaded zone")
 
     config = {"coupling": {k: v for k, v in vars(sc.coupling).items() if k != "aperture_law"},
