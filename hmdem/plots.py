@@ -103,8 +103,9 @@ def plot_fracture_chronology(path, net: Network, saturation: np.ndarray, radii, 
                              opened_time: np.ndarray, reached: np.ndarray, before_fluid: np.ndarray,
                              title: str) -> None:
     """Opened contacts (``segments`` (k, 2, 2) [m]) coloured by the time they opened, over the
-    invaded pattern (grey by saturation): solid where the fluid filled one of the contact's pores
-    after it opened, dotted where the fluid was there first, dashed where it never came."""
+    invaded pattern (grey by saturation): solid where invading fluid entered one of the
+    contact's pores after it opened, dotted where the fluid was there first, dashed where it
+    never came (``reached``, ``before_fluid``: the masks of fracture_timing)."""
     tri, s = _domain_triangulation(net, saturation)
     fig, ax = plt.subplots(figsize=(6.4, 6))
     ax.tripcolor(tri, facecolors=s, cmap="Greys", vmin=0, vmax=2.5, edgecolors="none")

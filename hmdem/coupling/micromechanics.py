@@ -69,7 +69,12 @@ def fracture_chronology(opened: np.ndarray, opened_time: np.ndarray, pipe_domain
     infiltration zone"). ``opened`` and ``opened_time`` per pipe (the end of the accepted step
     at which the contact first counted as opened), ``pipe_domains`` (m, 2) with OUTSIDE for the
     outer face, ``wetted_time`` and ``invasion_time`` per domain: see :func:`fracture_timing`."""
-    masks = fracture_timing(opened, opened_time, pipe_domains, wetted_time, invasion_time)
+    return chronology_counts(fracture_timing(opened, opened_time, pipe_domains, wetted_time, invasion_time),
+                             opened, opened_time)
+
+
+def chronology_counts(masks: dict, opened: np.ndarray, opened_time: np.ndarray) -> dict:
+    """The summary keys of :func:`fracture_chronology` from the masks of :func:`fracture_timing`."""
     times = opened_time[opened]
     return {
         "first_opening_time_s": float(np.nanmin(times)) if np.isfinite(times).any() else float("nan"),

@@ -10,7 +10,7 @@ import numpy as np
 from ..plots import plot_force_chains, plot_fracture_chronology
 from ..report import pattern_fractal_dimension, radial_pattern_dimension, write_run
 from .geometry import contact_gaps
-from .micromechanics import fracture_chronology, fracture_timing, lowest_path_resistance, pipe_resistance
+from .micromechanics import chronology_counts, fracture_timing, lowest_path_resistance, pipe_resistance
 from .radial import classify_radial_regime, domain_perimeter
 
 GPA = 1e9
@@ -36,8 +36,8 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
     # R_s on the final apertures and saturations (Figs. 15-16 report them in GPa s / m^2)
     resistance = pipe_resistance(net, sc.setup.fluids, state.saturation, model.pipes)
     path = lowest_path_resistance(net, model.pipes, resistance, net.inlet_domains, net.outlet_domains)
-    when = (opened, model.opened_time, net.pipe_domains, model.wetted_time, state.invasion_time)
-    chronology = fracture_chronology(*when)
+    timing = fracture_timing(opened, model.opened_time, net.pipe_domains, model.wetted_time, state.invasion_time)
+    chronology = chronology_counts(timing, opened, model.opened_time)
     extra = {
         "regime": classify_radial_regime(int(opened.sum()), d_f),
         "fractal_dimension": d_f,
@@ -80,7 +80,6 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
                           f"{sc.case.name}: contact forces at t = {state.t:.4g} s "
                           f"({int(opened.sum())} opened contacts in red on pattern.png)",
                           fixed=sc.fixed)
-        timing = fracture_timing(*when)
         plot_fracture_chronology(tmp / "fractures.png", net, state.saturation, grains.radii, positions[g[opened]],
                                  model.opened_time[opened], timing["reached"][opened], timing["before_fluid"][opened],
                                  f"{sc.case.name}: {int(opened.sum())} opened contacts by t = {state.t:.4g} s; "
