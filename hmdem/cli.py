@@ -37,6 +37,17 @@ def positive_number(text: str) -> float:
     return value
 
 
+def local_damping(text: str) -> float:
+    """argparse type: YADE's local damping, a number in [0, 1)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not 0.0 <= value < 1.0:
+        raise argparse.ArgumentTypeError(f"must be a number in [0, 1), got {text!r}")
+    return value
+
+
 def int_at_least(minimum: int, allowed: str | None = None):
     """argparse type: an integer >= ``minimum``; ``allowed`` words the one-line error."""
     allowed = allowed or f"an integer >= {minimum}"

@@ -15,7 +15,8 @@ from pathlib import Path
 
 from . import __version__
 from .cases import CASES
-from .cli import InputError, OneLineParser, dispatch, new_run_directory, non_negative_int, positive_int, positive_number
+from .cli import (InputError, OneLineParser, dispatch, local_damping, new_run_directory, non_negative_int, positive_int,
+                  positive_number)
 from .flow.fluids import WEAK_COMPRESSION
 
 PROG = "python -m hmdem.hele_shaw"
@@ -73,6 +74,9 @@ def build_parser() -> argparse.ArgumentParser:
     rad.add_argument("--no-pocket-newton", action="store_true",
                      help="leave trapped pockets to the quasi-Newton update alone (default: a scalar Newton "
                           "step on each, hmdem/coupling/pockets.py)")
+    rad.add_argument("--damping", type=local_damping,
+                     help="YADE local damping of the grains during the run, in [0, 1) (default 0.7, PFC's; the "
+                          "seed does not state it; the sample settles at 0.7 either way)")
     rad.add_argument("--threads", type=positive_int,
                      help="OpenMP threads of the DEM (YADE): 2 runs its cycles up to 1.7x faster on 2 cores but "
                           "the run is then not bit-reproducible (default 1, or as yade -jN / OMP_NUM_THREADS say)")
@@ -215,6 +219,8 @@ def run_radial(args) -> int:
     sc.coupling.pv_pocket_newton = not args.no_pocket_newton
     if args.pv_reuse_steps is not None:
         sc.coupling.pv_reuse_steps = args.pv_reuse_steps
+    if args.damping is not None:
+        sc.coupling.dem_damping = args.damping
     if args.t_max is not None:
         sc.setup.t_max = args.t_max
     if args.max_steps is not None:

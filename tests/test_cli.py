@@ -30,6 +30,7 @@ CMD = [sys.executable, "-m", "hmdem.hele_shaw"]
     (["radial", "--dem-cycles", "0"], "--dem-cycles"),
     (["radial", "--threads", "0"], "--threads"),
     (["radial", "--pv-reuse-steps", "-1"], "--pv-reuse-steps"),
+    (["radial", "--damping", "1"], "--damping"),
 ])
 def test_bad_input_one_line_exit_2_nothing_written(tmp_path, args, name):
     out = tmp_path / "run"
@@ -186,12 +187,14 @@ def test_radial_run_directory_contract(tmp_path):
 
 
 @pytest.mark.yade
-def test_no_pocket_newton_and_reuse_flags_reach_the_run(tmp_path):
+def test_no_pocket_newton_reuse_and_damping_flags_reach_the_run(tmp_path):
     out = tmp_path / "b3"
     assert main(["radial", "--case", "B3", "--max-steps", "2", "--no-pocket-newton", "--pv-reuse-steps", "0",
-                 "--out", str(out), "--quiet"]) == 0
-    coupling = tomllib.loads((out / "config.toml").read_text())["coupling"]
+                 "--damping", "0.25", "--out", str(out), "--quiet"]) == 0
+    config = tomllib.loads((out / "config.toml").read_text())
+    coupling = config["coupling"]
     assert coupling["pv_pocket_newton"] is False and coupling["pv_reuse_steps"] == 0
+    assert coupling["dem_damping"] == 0.25 and config["dem"]["damping"] == 0.25  # as YADE's integrator has it
 
 
 @pytest.mark.yade

@@ -100,6 +100,9 @@ class CouplingSetup:
     # They save ~10 % over the first steps of A3 and B3 and hurt where the map changes from
     # one step to the next (B1's late stretch: decisions #47, BENCHMARKS.md)
     pv_reuse_steps: int = 5
+    # YADE local damping of the grains during the run (the sample always settles at 0.7). The
+    # seed does not state it; 0.7 is PFC's default (digest §2.4, decisions #49)
+    dem_damping: float = 0.7
 
 
 @dataclass(frozen=True)

@@ -90,7 +90,8 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
     config = {"coupling": {k: v for k, v in vars(sc.coupling).items() if k != "aperture_law"},
               "aperture_law": vars(sc.coupling.aperture_law),
               "dem": {"timestep_s": grains.timestep, "stable_timestep_s": sc.coupling.stable_dem_step,
-                      "n_grains": len(grains.radii), "n_fixed": int(np.sum(sc.fixed)), "threads": grains.threads}}
+                      "n_grains": len(grains.radii), "n_fixed": int(np.sum(sc.fixed)), "threads": grains.threads,
+                      "damping": grains.damping}}
     overlay = positions[g[opened]]
     return write_run(out, sc, model, state, rec, seed=0, argv=argv, summary_extra=extra, extra_files=files,
                      overlay=overlay, config_extra=config)

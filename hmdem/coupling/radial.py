@@ -129,13 +129,15 @@ def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, 
 
 
 def start_grains(sc: RadialScenario, threads: int | None = None):
-    """The YADE disc assembly of the scenario's packing, settled; sets the stable DEM step.
+    """The YADE disc assembly of the scenario's packing, settled (at the default damping 0.7,
+    then the run's ``sc.coupling.dem_damping``); sets the stable DEM step.
     ``threads``: YADE's OpenMP threads (None: as the process was started, else 1)."""
     from ..dem.assembly import DiscAssembly
 
     pk = sc.packing
     grains = DiscAssembly(pk.centres, pk.radii, fixed=sc.fixed, threads=threads)
     grains.run(SETTLE_CYCLES)
+    grains.damping = sc.coupling.dem_damping
     sc.coupling.stable_dem_step = grains.timestep = grains.stable_timestep()
     return grains
 

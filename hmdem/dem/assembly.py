@@ -69,6 +69,18 @@ class DiscAssembly:
         return safety * float(np.min(np.sqrt(self.masses()[free] / stiffness)))
 
     @property
+    def damping(self) -> float:
+        """YADE's local (non-viscous) damping of the grains' accelerations, 0 <= damping < 1."""
+        return float(self._newton().damping)
+
+    @damping.setter
+    def damping(self, value: float) -> None:
+        self._newton().damping = float(value)
+
+    def _newton(self):
+        return next(e for e in self._O.engines if type(e).__name__ == "NewtonIntegrator")
+
+    @property
     def threads(self) -> int:
         """OpenMP threads YADE runs on (1 unless asked: more are faster but not bit-reproducible)."""
         return int(self._O.numThreads)
