@@ -279,7 +279,7 @@ def test_poiseuille_forces_balance_and_mach(poiseuille):
 
 @pytest.mark.xfail(strict=True, reason="known model discrepancy, issue 6: the automaton's Poiseuille viscosity "
                    "at 600 x 100 rows is 0.328 (+6.8 % over Eq. 6's 0.3075; the paper measured 0.30); it grows "
-                   "with the channel width (about 0.31, 0.325, 0.34 at 50, 100, 200 rows), the scale dependence "
+                   "with the channel width (0.315, 0.323, 0.328, 0.335 at 25, 50, 100, 200 rows), the scale dependence "
                    "expected of a 2-D lattice gas beyond the Boltzmann approximation (decisions #43)")
 def test_poiseuille_viscosity_matches_eq6(poiseuille):
     # C7b: nu from the Q-dP slope within 5 % of Eq. 6
