@@ -22,7 +22,8 @@ import time
 from pathlib import Path
 
 from . import __version__
-from .cli import InputError, OneLineParser, int_at_least, new_run_directory, non_negative_int, positive_number
+from .cli import (InputError, OneLineParser, int_at_least, new_run_directory, non_negative_int, number_in,
+                  positive_number)
 from .rundir import atomic_run_directory
 from .rundir import write_json as write_strict_json
 
@@ -37,11 +38,7 @@ class _Parser(OneLineParser):
 grain_count = int_at_least(MIN_GRAINS)
 
 
-def strain_value(text: str) -> float:
-    v = positive_number(text)
-    if v >= 0.5:
-        raise argparse.ArgumentTypeError(f"must be an axial strain in (0, 0.5), got {text!r}")
-    return v
+strain_value = number_in("an axial strain in (0, 0.5)", lambda v: 0 < v < 0.5)
 
 
 def stress_list(text: str) -> list[float]:

@@ -27,25 +27,25 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.command}: {message}\n")
 
 
-def positive_number(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text!r}") from None
-    if not math.isfinite(value) or value <= 0:
-        raise argparse.ArgumentTypeError(f"must be > 0 and finite, got {text!r}")
-    return value
+def number_in(allowed: str, accept):
+    """argparse type: a finite number for which ``accept(value)`` holds; ``allowed`` words the
+    one-line error (e.g. "a number in [0, 1)")."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and accept(value)):
+            raise argparse.ArgumentTypeError(f"must be {allowed}, got {text!r}")
+        return value
+
+    return parse
 
 
-def local_damping(text: str) -> float:
-    """argparse type: YADE's local damping, a number in [0, 1)."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not 0.0 <= value < 1.0:
-        raise argparse.ArgumentTypeError(f"must be a number in [0, 1), got {text!r}")
-    return value
+positive_number = number_in("a finite number > 0", lambda v: v > 0)
+non_negative_number = number_in("a finite number >= 0", lambda v: v >= 0)
+local_damping = number_in("a number in [0, 1) (YADE's local damping)", lambda v: 0 <= v < 1)
 
 
 def int_at_least(minimum: int, allowed: str | None = None):

@@ -20,7 +20,6 @@ writes the directory with status "interrupted".
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
@@ -30,7 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hmdem.cli import InputError, OneLineParser, dispatch, int_at_least, new_run_directory, positive_number
+from hmdem.cli import (InputError, OneLineParser, dispatch, int_at_least, new_run_directory, non_negative_number,
+                       number_in, positive_number)
 from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_toml
 
 from . import calibrations, cases, droplet
@@ -50,21 +50,7 @@ class _Parser(OneLineParser):
     command = PROG
 
 
-def angle(text: str) -> float:
-    value = positive_number(text)
-    if not value < 180.0:
-        raise argparse.ArgumentTypeError(f"must be a contact angle in (0, 180) degrees, got {text!r}")
-    return value
-
-
-def non_negative(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number >= 0, got {text!r}") from None
-    if not math.isfinite(value) or value < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0 and finite, got {text!r}")
-    return value
+angle = number_in("a contact angle in (0, 180) degrees", lambda v: 0 < v < 180)
 
 
 def build_parser() -> OneLineParser:
@@ -79,14 +65,14 @@ def build_parser() -> OneLineParser:
                         "or the --calibration run's)")
     p.add_argument("--volume", type=positive_number, default=DEFAULT_VOLUME,
                    help=f"fluid volume [m^3] (a ridge: over its periodic length; default {DEFAULT_VOLUME})")
-    p.add_argument("--gravity", type=non_negative, default=cases.GRAVITY,
+    p.add_argument("--gravity", type=non_negative_number, default=cases.GRAVITY,
                    help=f"downward gravity [m/s^2] (default {cases.GRAVITY}; 0: a spherical cap at any size)")
     p.add_argument("--ridge", action="store_true",
                    help=f"a 2-D drop, periodic over {droplet.RIDGE_LENGTH} dx along y (de Gennes' puddle limit)")
     p.add_argument("--calibration", type=Path, help="a calibrate run directory whose s_ff, s_sf, c0, rho0 to use")
     p.add_argument("--s-ff", type=positive_number, help="fluid-fluid pairwise strength [N] (with --s-sf, "
                    "instead of a calibration)")
-    p.add_argument("--s-sf", type=non_negative, help="solid-fluid pairwise strength [N]")
+    p.add_argument("--s-sf", type=non_negative_number, help="solid-fluid pairwise strength [N]")
     p.add_argument("--c0", type=positive_number, help="speed of sound [m/s] (default: seed 000 Table 1)")
     text = "find s_ff for a surface tension (free slab) and s_sf for a contact angle (zero-gravity drop)"
     p = sub.add_parser("calibrate", help=text, description=text)

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hmdem.cli import InputError, OneLineParser, dispatch, int_at_least, new_run_directory, positive_number
+from hmdem.cli import InputError, OneLineParser, dispatch, int_at_least, new_run_directory, number_in, positive_number
 from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_toml
 
 from ..interrupts import exit_status
@@ -44,11 +44,7 @@ class _Parser(OneLineParser):
     command = PROG
 
 
-def fraction(text: str) -> float:
-    value = positive_number(text)
-    if not value < 1.0:
-        raise argparse.ArgumentTypeError(f"must be in (0, 1), got {text!r}")
-    return value
+fraction = number_in("a number in (0, 1)", lambda v: 0 < v < 1)
 
 
 def roughness(text: str) -> float:
@@ -62,11 +58,7 @@ def roughness(text: str) -> float:
     return value
 
 
-def density(text: str) -> float:
-    value = positive_number(text)
-    if not value < 7.0:
-        raise argparse.ArgumentTypeError(f"must be particles per node in (0, 7), got {text!r}")
-    return value
+density = number_in("particles per node in (0, 7)", lambda v: 0 < v < 7)
 
 
 def build_parser() -> OneLineParser:
