@@ -324,6 +324,22 @@ def reduced_study(tmp_path_factory):
     return out, json.loads((out / "summary.json").read_text())
 
 
+def test_workers_do_not_change_the_numbers(tmp_path):
+    # each channel carries its own geometry and lattice seed, so a study run on worker processes
+    # gives the serial run's numbers to the bit (tiny channels, fixed 200-step windows)
+    args = ["permeability", "--hurst", "0.5", "--surfaces", "1", "--nx", "104", "--ny", "8", "--steps", "200",
+            "--relative-roughness", "0.741", "--relative-roughness", "0.417", "--quiet"]
+    runs = {}
+    for workers in ("1", "2"):
+        out = tmp_path / f"workers{workers}"
+        assert lga_main(args + ["--workers", workers, "--out", str(out)]) == 0
+        summary = json.loads((out / "summary.json").read_text())
+        summary.pop("wall_time_s")
+        runs[workers] = summary, (out / "timeseries.csv").read_text()
+    assert runs["1"] == runs["2"]
+    assert [len(p["drives"]) for p in runs["2"][0]["points"]] == [2, 2]
+
+
 def test_reduced_study_run_directory(reduced_study):
     out, summary = reduced_study
     assert {"config.toml", "summary.json", "timeseries.csv", "collapse.png", "points.csv"} <= {
@@ -360,6 +376,7 @@ def test_reduced_permeability_ordering_and_magnitude(reduced_study):
     (["rough", "--nx", "500"], "--nx"),
     (["poiseuille", "--density", "8"], "--density"),
     (["permeability", "--hurst", "1.2"], "--hurst"),
+    (["permeability", "--workers", "0"], "--workers"),
     (["poiseuille", "--g", "0"], "--g"),
 ])
 def test_bad_input_is_one_line(tmp_path, argv, flag):

@@ -3,7 +3,8 @@ studies of seed 003 with run directories.
 
     lga poiseuille   [--nx N] [--ny ROWS] [--mirror] [--density RHO] [--g G] [--steps N] [--seed N]
     lga rough        [--nx N] [--ny ROWS] [--hurst H] [--relative-roughness R] [--g G] [--steps N] [--seed N]
-    lga permeability [--nx N] [--ny ROWS] [--hurst H ...] [--relative-roughness R ...] [--surfaces N] ...
+    lga permeability [--nx N] [--ny ROWS] [--hurst H ...] [--relative-roughness R ...] [--surfaces N]
+                     [--workers N] ...
     lga nonlinear    [--nx N] [--ny ROWS] [--hurst H] [--relative-roughness R] [--steps N] [--seed N]
 
 ``--nx`` is the periodic length along the flow. ``--ny`` is the smooth channel's fluid rows
@@ -19,6 +20,7 @@ Ctrl-C writes what was averaged, with status "interrupted".
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from pathlib import Path
 
@@ -29,6 +31,7 @@ from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_tom
 
 from ..interrupts import exit_status
 from . import figures, studies
+from .pool import run_in_workers
 from .lattice import ROW
 from .rules import REST_DENSITY, viscosity
 
@@ -99,6 +102,9 @@ def build_parser() -> OneLineParser:
             p.add_argument("--relative-roughness", type=roughness, action="append",
                            help="y_max/(delta_av/2) (repeatable; default 0.741, 0.588, 0.417)")
             p.add_argument("--surfaces", type=int_at_least(1), default=2, help="surfaces per H (default 2)")
+            p.add_argument("--workers", type=int_at_least(1), default=os.cpu_count() or 1,
+                           help="channels run side by side in worker processes, one core each (default: the "
+                                "machine's %(default)s cores; the numbers do not depend on it)")
         p.add_argument("--out", type=Path, help="run directory (must not exist; default runs/lga-<case>-<time>)")
         p.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
@@ -138,22 +144,26 @@ def run_directory(args, config: dict, summary: dict, timeseries: list, write_fig
 
 
 def run_channels(args, channel_drives, plan_of) -> str:
-    """Run each (name, channel, forcings) in turn under one progress bar; returns the status."""
+    """Run each (name, channel, forcings), in turn or on ``args.workers`` processes, under one
+    progress bar; returns the status."""
     total = sum(plan_of(ch).steps(len(forcings)) for _, ch, forcings in channel_drives)
     bar = Progress(args, total)
-    args.timeseries = []
-    status = "finished"
-    try:
-        for k, (name, channel, forcings) in enumerate(channel_drives):
-            series = []
-            try:
-                channel.run(forcings, plan_of(channel), args.density, args.seed + k, progress=bar, timeseries=series)
-            finally:
-                args.timeseries += [(s[0], name, *s[1:]) for s in series]
-    except KeyboardInterrupt:
-        status = "interrupted"
+    jobs = [(channel, forcings, plan_of(channel), args.density, args.seed + k)
+            for k, (_, channel, forcings) in enumerate(channel_drives)]
+    workers = min(getattr(args, "workers", 1), len(jobs))
+    series = [[] for _ in jobs]
+    stopped = False
+    if workers > 1:
+        stopped, series = run_in_workers(jobs, workers, bar)
+    else:
+        try:
+            for k, (channel, *run_args) in enumerate(jobs):
+                channel.run(*run_args, progress=bar, timeseries=series[k])
+        except KeyboardInterrupt:
+            stopped = True
+    args.timeseries = [(s[0], name, *s[1:]) for (name, _, _), rows in zip(channel_drives, series) for s in rows]
     bar.close()
-    return status
+    return "interrupted" if stopped else "finished"
 
 
 def plan_for(args):
