@@ -26,13 +26,13 @@ from pathlib import Path
 
 import numpy as np
 
-from hmdem.cli import InputError, OneLineParser, dispatch, int_at_least, new_run_directory, number_in, positive_number
+from hmdem.cli import InputError, OneLineParser, dispatch, int_at_least, new_run_directory, number_in
 from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_toml
 
 from ..interrupts import exit_status
 from . import figures, studies
-from .pool import run_in_workers
 from .lattice import ROW
+from .pool import run_in_workers
 from .rules import REST_DENSITY, viscosity
 
 PROG = "python -m sph_bridge lga"
