@@ -324,9 +324,13 @@ def reduced_study(tmp_path_factory):
     return out, json.loads((out / "summary.json").read_text())
 
 
-def test_workers_do_not_change_the_numbers(tmp_path):
+def test_workers_do_not_change_the_numbers(tmp_path, monkeypatch):
     # each channel carries its own geometry and lattice seed, so a study run on worker processes
     # gives the serial run's numbers to the bit (tiny channels, fixed 200-step windows)
+    from sph_bridge.lga import cli, pool
+
+    calls = []
+    monkeypatch.setattr(cli, "run_in_workers", lambda *a: calls.append(a[1]) or pool.run_in_workers(*a))
     args = ["permeability", "--hurst", "0.5", "--surfaces", "1", "--nx", "104", "--ny", "8", "--steps", "200",
             "--relative-roughness", "0.741", "--relative-roughness", "0.417", "--quiet"]
     runs = {}
@@ -336,6 +340,7 @@ def test_workers_do_not_change_the_numbers(tmp_path):
         summary = json.loads((out / "summary.json").read_text())
         summary.pop("wall_time_s")
         runs[workers] = summary, (out / "timeseries.csv").read_text()
+    assert calls == [2]  # the serial run did not use workers, the other ran on two
     assert runs["1"] == runs["2"]
     assert [len(p["drives"]) for p in runs["2"][0]["points"]] == [2, 2]
 

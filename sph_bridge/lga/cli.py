@@ -20,7 +20,6 @@ Ctrl-C writes what was averaged, with status "interrupted".
 from __future__ import annotations
 
 import argparse
-import os
 import time
 from pathlib import Path
 
@@ -32,7 +31,7 @@ from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_tom
 from ..interrupts import exit_status
 from . import figures, studies
 from .lattice import ROW
-from .pool import run_in_workers
+from .pool import default_workers, run_in_workers
 from .rules import REST_DENSITY, viscosity
 
 PROG = "python -m sph_bridge lga"
@@ -102,7 +101,7 @@ def build_parser() -> OneLineParser:
             p.add_argument("--relative-roughness", type=roughness, action="append",
                            help="y_max/(delta_av/2) (repeatable; default 0.741, 0.588, 0.417)")
             p.add_argument("--surfaces", type=int_at_least(1), default=2, help="surfaces per H (default 2)")
-            p.add_argument("--workers", type=int_at_least(1), default=os.cpu_count() or 1,
+            p.add_argument("--workers", type=int_at_least(1), default=default_workers(),
                            help="channels run side by side in worker processes, one core each (default: the "
                                 "machine's %(default)s cores; the numbers do not depend on it)")
         p.add_argument("--out", type=Path, help="run directory (must not exist; default runs/lga-<case>-<time>)")

@@ -4,40 +4,59 @@ Each channel is independent: its own geometry, lattice seed and drives, so a cha
 same numbers in a worker as in the main process. The automaton's kernel runs one thread per
 lattice below ~1e6 nodes (BENCHMARKS.md), so a study of paper-size channels uses one core per
 worker. One process per channel, at most N at a time, spawned (not forked: numba's thread pools
-do not survive a fork). Nothing locked is shared, so a worker killed while it runs cannot hang
-the others: each writes its step count to its own slot of a shared array (the progress bar sums
-them) and reads a shared stop flag at every progress report. Workers ignore SIGINT; on Ctrl-C
-(or SIGTERM to the main process) the main process raises the flag and every running worker
-sends back the drives it finished plus its partial window, as a serial run keeps them. A worker
-killed outright loses its channel; the others are kept and the run is "interrupted".
+do not survive a fork), widest channel first.
+
+Nothing locked is shared, so a worker killed while it runs cannot hang the others: each writes
+its step count to its own slot of a shared array (the progress bar sums them) and reads a
+shared stop flag at every progress report. Workers ignore SIGINT and SIGTERM (a batch system
+signals every process of a job); while they run, the main process's Ctrl-C or SIGTERM only
+raises the flag, and every running worker sends back the drives it finished plus its partial
+window, as a serial run keeps them. A worker stops too if the main process is gone. A worker
+killed outright loses its channel (the run is then "interrupted"); an error in a worker is
+raised again in the main process.
 """
 
 from __future__ import annotations
 
 import multiprocessing
+import os
 import signal
 import time
+import traceback
 
 POLL_SECONDS = 0.5
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+def default_workers() -> int:
+    """The cores this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
 def _run_channel(conn, slot: int, steps_done, stop, channel, forcings, plan, density: float, seed: int) -> None:
-    """Worker: one channel's drives; sends (results, timeseries rows, interrupted) back."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the main process decides when to stop
+    """Worker: one channel's drives; sends ("ok", results, timeseries rows, interrupted) or
+    ("error", traceback) back."""
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, signal.SIG_IGN)  # the main process decides when to stop
+    parent = os.getppid()
 
     def report(n: int) -> None:
         steps_done[slot] += n
-        if stop.value:
+        if stop.value or os.getppid() != parent:
             raise KeyboardInterrupt
 
     series = []
-    stopped = stop.value != 0
-    if not stopped:
-        try:
-            channel.run(forcings, plan, density, seed, progress=report, timeseries=series)
-        except KeyboardInterrupt:
-            stopped = True
-    conn.send((channel.results, series, stopped))
+    try:
+        stopped = stop.value != 0
+        if not stopped:
+            try:
+                channel.run(forcings, plan, density, seed, progress=report, timeseries=series)
+            except KeyboardInterrupt:
+                stopped = True
+        message = ("ok", channel.results, series, stopped)
+    except Exception:  # noqa: BLE001 - handed to the main process whole
+        message = ("error", traceback.format_exc())
+    conn.send(message)
     conn.close()
 
 
@@ -50,7 +69,7 @@ def run_in_workers(jobs, workers: int, progress) -> tuple[bool, list[list]]:
     steps_done = context.RawArray("q", len(jobs))
     stop = context.RawValue("b", 0)
     series = [[] for _ in jobs]
-    # longest first, so the widest channel does not start last (cost ~ planned steps x nodes)
+
     def cost(k):
         channel, forcings, plan = jobs[k][:3]
         return plan.steps(len(forcings)) * channel.geometry.solid.size
@@ -58,37 +77,60 @@ def run_in_workers(jobs, workers: int, progress) -> tuple[bool, list[list]]:
     waiting = sorted(range(len(jobs)), key=cost, reverse=True)
     running = {}  # job index -> (process, connection)
     reported = 0
-    interrupted = False
-    while waiting or running:
-        try:
+    incomplete = False
+
+    def raise_stop(signum, frame):
+        stop.value = 1
+
+    previous = {sig: signal.signal(sig, raise_stop) for sig in STOP_SIGNALS}
+    try:
+        while waiting or running:
             while waiting and len(running) < workers and not stop.value:
                 k = waiting.pop(0)
                 receive, send = context.Pipe(duplex=False)
                 process = context.Process(target=_run_channel, args=(send, k, steps_done, stop, *jobs[k]))
-                process.start()
+                for sig in STOP_SIGNALS:  # ignored from its first instruction (inherited through exec)
+                    signal.signal(sig, signal.SIG_IGN)
+                try:
+                    process.start()
+                finally:
+                    for sig in STOP_SIGNALS:
+                        signal.signal(sig, raise_stop)
                 send.close()
                 running[k] = (process, receive)
             if stop.value:
                 waiting.clear()
             time.sleep(POLL_SECONDS)
             for k, (process, receive) in list(running.items()):
-                if not receive.poll():
-                    if process.is_alive():
-                        continue
-                    interrupted = True  # died without a word
-                else:
+                alive = process.is_alive()  # before poll: a worker may send and exit in between
+                if receive.poll():
                     try:
-                        results, series[k], stopped = receive.recv()
-                        jobs[k][0].results = results
-                        interrupted |= stopped
-                    except EOFError:  # killed: its end of the pipe closed unwritten
-                        interrupted = True
+                        message = receive.recv()
+                    except (EOFError, OSError):  # killed: its end of the pipe closed unwritten
+                        message = ("lost",)
+                elif alive:
+                    continue
+                else:
+                    message = ("lost",)
                 process.join()
                 del running[k]
+                if message[0] == "error":
+                    raise RuntimeError(f"channel {k} failed in its worker process:\n{message[1]}")
+                if message[0] == "lost":
+                    incomplete = True
+                    continue
+                _, jobs[k][0].results, series[k], stopped = message
+                incomplete |= stopped  # only when the flag was up or the main process gone
             total = sum(steps_done)
             progress(total - reported)
             reported = total
-        except KeyboardInterrupt:
-            interrupted = True
-            stop.value = 1  # running workers return what they have at their next report
+        interrupted = incomplete or stop.value != 0
+    finally:
+        stop.value = 1  # on an error, the other workers stop at their next report
+        for process, _ in running.values():
+            process.join(timeout=10)
+            if process.is_alive():
+                process.terminate()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     return interrupted, series
