@@ -317,7 +317,7 @@ def test_half_channel_equals_full_channel(poiseuille, half_channel):
 @pytest.fixture(scope="module")
 def reduced_study(tmp_path_factory):
     """H = 0.5, one surface, delta_av/(2 y_max) = 1.35, 1.7, 2.4, with a 256-long rough section
-    and y_max = 45 rows (half the paper's in both directions): ~2 minutes."""
+    and y_max = 45 rows (half the paper's in both directions): ~3 minutes on 2 workers."""
     out = tmp_path_factory.mktemp("lga") / "permeability"
     assert lga_main(["permeability", "--hurst", "0.5", "--surfaces", "1", "--nx", "296", "--ny", "45",
                      "--out", str(out), "--quiet"]) == 0

@@ -37,7 +37,7 @@ from .rules import REST_DENSITY, viscosity
 PROG = "python -m sph_bridge lga"
 PAPER_OPENINGS = (1.35, 1.7, 2.4)  # delta_av/(2 y_max) of the issue's permeability study
 POISEUILLE_VELOCITIES = (0.02, 0.04, 0.06)  # mean velocities of the default drives (u_max <= 0.09)
-ROUGH_VELOCITIES = (0.01, 0.02)  # mean velocities Q_full/delta_av aimed at: Darcy drives (Re ~ 5-15)
+ROUGH_VELOCITIES = (0.005, 0.01)  # mean velocities Q_full/delta_av aimed at: Darcy drives (Re ~ 3-18, decisions #50)
 NONLINEAR_REYNOLDS = (20, 50, 80, 115, 150, 180)  # seed 003 §5: Re ~ 20-180
 MACH_LIMIT = 0.30  # seed 003 §5: the largest velocity it allowed (digest C17)
 
@@ -110,20 +110,31 @@ def build_parser() -> OneLineParser:
 
 
 class Progress:
-    """A tqdm bar over lattice steps (silent with --quiet)."""
+    """A tqdm bar over lattice steps (silent with --quiet). With ``channels`` it also counts the
+    finished channels, since extended averaging windows keep the bar near its (growing) total."""
 
-    def __init__(self, args, total: int):
+    def __init__(self, args, total: int, channels: int = 0):
         self.bar = None
+        self.channels, self.channels_done = channels, 0
         if not args.quiet:
             from tqdm import tqdm
 
             self.bar = tqdm(total=total, desc=f"lga {args.command}", unit=" steps", unit_scale=True)
+            self.show_channels()
 
     def __call__(self, steps: int) -> None:
         if self.bar is not None:
             if self.bar.n + steps > self.bar.total:  # an averaging window extended for precision
                 self.bar.total = self.bar.n + steps
             self.bar.update(steps)
+
+    def channel_done(self) -> None:
+        self.channels_done += 1
+        self.show_channels()
+
+    def show_channels(self) -> None:
+        if self.bar is not None and self.channels:
+            self.bar.set_postfix_str(f"channels {self.channels_done}/{self.channels}")
 
     def close(self) -> None:
         if self.bar is not None:
@@ -146,18 +157,19 @@ def run_channels(args, channel_drives, plan_of) -> str:
     """Run each (name, channel, forcings), in turn or on ``args.workers`` processes, under one
     progress bar; returns the status."""
     total = sum(plan_of(ch).steps(len(forcings)) for _, ch, forcings in channel_drives)
-    bar = Progress(args, total)
+    bar = Progress(args, total, channels=len(channel_drives))
     jobs = [(channel, forcings, plan_of(channel), args.density, args.seed + k)
             for k, (_, channel, forcings) in enumerate(channel_drives)]
     workers = min(getattr(args, "workers", 1), len(jobs))
     series = [[] for _ in jobs]
     stopped = False
     if workers > 1:
-        stopped, series = run_in_workers(jobs, workers, bar)
+        stopped, series = run_in_workers(jobs, workers, bar, bar.channel_done)
     else:
         try:
             for k, (channel, *run_args) in enumerate(jobs):
                 channel.run(*run_args, progress=bar, timeseries=series[k])
+                bar.channel_done()
         except KeyboardInterrupt:
             stopped = True
     args.timeseries = [(s[0], name, *s[1:]) for (name, _, _), rows in zip(channel_drives, series) for s in rows]

@@ -60,10 +60,10 @@ def _run_channel(conn, slot: int, steps_done, stop, channel, forcings, plan, den
     conn.close()
 
 
-def run_in_workers(jobs, workers: int, progress) -> tuple[bool, list[list]]:
+def run_in_workers(jobs, workers: int, progress, channel_done=lambda: None) -> tuple[bool, list[list]]:
     """Run ``jobs`` = [(channel, forcings, plan, density, seed)] on up to ``workers`` processes
     and set each channel's ``results``; ``progress(steps)`` is called with the steps done since
-    its last call. Returns whether the run was interrupted (Ctrl-C or SIGTERM in the main process,
+    its last call and ``channel_done()`` as each channel returns. Returns whether the run was interrupted (Ctrl-C or SIGTERM in the main process,
     or a worker lost) and each job's timeseries rows, in job order."""
     context = multiprocessing.get_context("spawn")
     steps_done = context.RawArray("q", len(jobs))
@@ -121,6 +121,7 @@ def run_in_workers(jobs, workers: int, progress) -> tuple[bool, list[list]]:
                     continue
                 _, jobs[k][0].results, series[k], stopped = message
                 incomplete |= stopped  # only when the flag was up or the main process gone
+                channel_done()
             total = sum(steps_done)
             progress(total - reported)
             reported = total
