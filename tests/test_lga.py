@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import signal
 import subprocess
 import sys
@@ -186,6 +187,30 @@ def test_parallel_kernel_is_bit_identical_to_serial():
                0.0, lattice.fluid_nodes, gains, losses)
         results.append((lattice.state.copy(), losses.copy()))
     assert np.array_equal(results[0][0], results[1][0]) and np.array_equal(results[0][1], results[1][1])
+
+
+KERNEL_CACHE_SCRIPT = """
+import numpy as np
+from sph_bridge.lga import automaton, channels
+from sph_bridge.lga.lattice import Lattice
+lattice = Lattice(channels.smooth_channel(64, 4), seed=1)
+for kernel in (automaton.advance_serial, automaton.advance_parallel):
+    steps = np.zeros(2, dtype=np.int64)
+    kernel(lattice.state, lattice.spare, lattice.solid, lattice.mirror, lattice.fluid, lattice.nx, False, 1, 0, 0.0,
+           lattice.fluid_nodes, steps, steps.copy())
+print(*(sum(k.stats.cache_hits.values()) for k in (automaton.advance_serial, automaton.advance_parallel)))
+"""
+
+
+def test_serial_and_parallel_kernels_are_cached_apart(tmp_path):
+    # numba's disk cache keys compiled code by function and signature, not by jit options (numba
+    # issue #6845): with one Python function behind both kernels, the parallel one was served
+    # the serial one's cached code (1 cache hit here), and the test above compared a kernel
+    # with itself. In an empty cache directory neither may find the other's entry (~10 s).
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
+    out = subprocess.run([sys.executable, "-c", KERNEL_CACHE_SCRIPT], env=env, capture_output=True, text=True,
+                         check=True, timeout=300)
+    assert out.stdout.split() == ["0", "0"]
 
 
 def test_forcing_gain_at_rest():

@@ -25,6 +25,7 @@ P_x(t+1) - P_x(t) = forcing - wall loss every step (digest §1.6, claim C5).
 from __future__ import annotations
 
 import math
+import types
 
 import numpy as np
 from numba import njit, prange
@@ -155,8 +156,19 @@ def advance(state, spare, solid, mirror, fluid, nx, periodic_y, seed, step0, g, 
         state[:] = spare
 
 
-advance_parallel = njit(cache=True, parallel=True)(advance)
-advance_serial = njit(cache=True)(advance)
+def _named_copy(func, name: str):
+    """``func`` under another name. Numba's on-disk cache files a function by module, name and
+    line, and keys its entries by signature, not by jit options (numba issue #6845): compiled
+    from one function, the serial and the parallel kernel would share one cache entry and
+    whichever was compiled first would serve both."""
+    copy = types.FunctionType(func.__code__, func.__globals__, name, func.__defaults__, func.__closure__)
+    copy.__qualname__ = name
+    copy.__doc__ = func.__doc__
+    return copy
+
+
+advance_parallel = njit(cache=True, parallel=True)(_named_copy(advance, "advance_parallel"))
+advance_serial = njit(cache=True)(_named_copy(advance, "advance_serial"))
 PARALLEL_WORDS = 16_000  # ~1e6 nodes: below this one thread beats the cost of a parallel region per step
 
 
