@@ -32,7 +32,7 @@ def test_forces_balance(study):
 
 def test_darcy_regime(study):
     # C9: Q against dP through the origin at the low drives: the two drives' slopes agree within 5 %
-    # (mean velocities 0.005 and 0.01, Re ~ 3-19: one octave above, 2 of 18 channels exceeded 5 %
+    # (mean velocities 0.005 and 0.01, Re 2.5-18.6: one octave above, 2 of 18 channels exceeded 5 %
     # as weak inertia set in; decisions #50)
     for p in study["points"]:
         assert abs(p["darcy_slope_change"]) <= 0.05, p["name"]

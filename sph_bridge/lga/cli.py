@@ -37,7 +37,7 @@ from .rules import REST_DENSITY, viscosity
 PROG = "python -m sph_bridge lga"
 PAPER_OPENINGS = (1.35, 1.7, 2.4)  # delta_av/(2 y_max) of the issue's permeability study
 POISEUILLE_VELOCITIES = (0.02, 0.04, 0.06)  # mean velocities of the default drives (u_max <= 0.09)
-ROUGH_VELOCITIES = (0.005, 0.01)  # mean velocities Q_full/delta_av aimed at: Darcy drives (Re ~ 3-18, decisions #50)
+ROUGH_VELOCITIES = (0.005, 0.01)  # mean velocities Q_full/delta_av aimed at: Darcy drives (Re ~ 3-19, decisions #50)
 NONLINEAR_REYNOLDS = (20, 50, 80, 115, 150, 180)  # seed 003 §5: Re ~ 20-180
 MACH_LIMIT = 0.30  # seed 003 §5: the largest velocity it allowed (digest C17)
 
@@ -110,8 +110,8 @@ def build_parser() -> OneLineParser:
 
 
 class Progress:
-    """A tqdm bar over lattice steps (silent with --quiet). With ``channels`` it also counts the
-    finished channels, since extended averaging windows keep the bar near its (growing) total."""
+    """A tqdm bar over lattice steps (silent with --quiet). With ``channels`` > 1 it also counts
+    the finished channels, since extended averaging windows keep the bar near its (growing) total."""
 
     def __init__(self, args, total: int, channels: int = 0):
         self.bar = None
@@ -133,7 +133,7 @@ class Progress:
         self.show_channels()
 
     def show_channels(self) -> None:
-        if self.bar is not None and self.channels:
+        if self.bar is not None and self.channels > 1:
             self.bar.set_postfix_str(f"channels {self.channels_done}/{self.channels}")
 
     def close(self) -> None:

@@ -60,7 +60,8 @@ def _run_channel(conn, slot: int, steps_done, stop, channel, forcings, plan, den
     conn.close()
 
 
-def run_in_workers(jobs, workers: int, progress, channel_done=lambda: None) -> tuple[bool, list[list]]:
+def run_in_workers(jobs, workers: int, progress,
+                   channel_done=lambda: None) -> tuple[bool, list[list]]:
     """Run ``jobs`` = [(channel, forcings, plan, density, seed)] on up to ``workers`` processes
     and set each channel's ``results``; ``progress(steps)`` is called with the steps done since
     its last call and ``channel_done()`` as each channel returns. Returns whether the run was interrupted (Ctrl-C or SIGTERM in the main process,
@@ -121,7 +122,8 @@ def run_in_workers(jobs, workers: int, progress, channel_done=lambda: None) -> t
                     continue
                 _, jobs[k][0].results, series[k], stopped = message
                 incomplete |= stopped  # only when the flag was up or the main process gone
-                channel_done()
+                if not stopped:
+                    channel_done()
             total = sum(steps_done)
             progress(total - reported)
             reported = total
