@@ -64,8 +64,9 @@ def run_in_workers(jobs, workers: int, progress,
                    channel_done=lambda: None) -> tuple[bool, list[list]]:
     """Run ``jobs`` = [(channel, forcings, plan, density, seed)] on up to ``workers`` processes
     and set each channel's ``results``; ``progress(steps)`` is called with the steps done since
-    its last call and ``channel_done()`` as each channel returns. Returns whether the run was interrupted (Ctrl-C or SIGTERM in the main process,
-    or a worker lost) and each job's timeseries rows, in job order."""
+    its last call and ``channel_done()`` as each channel completes. Returns whether the run was
+    interrupted (Ctrl-C or SIGTERM in the main process, or a worker lost) and each job's
+    timeseries rows, in job order."""
     context = multiprocessing.get_context("spawn")
     steps_done = context.RawArray("q", len(jobs))
     stop = context.RawValue("b", 0)
