@@ -187,6 +187,64 @@ def test_radial_run_directory_contract(tmp_path):
 
 
 @pytest.mark.yade
+def test_interrupted_radial_run_keeps_the_last_accepted_grains(tmp_path, monkeypatch):
+    # Ctrl-C inside a flow step, just after a trial DEM run: exit 130 and a complete run
+    # directory whose grains are the last accepted step's (the domain areas of fractures.npz's
+    # positions are network.npz's volumes to round-off), not the trial's
+    from hmdem.coupling.geometry import DomainGeometry
+    from hmdem.coupling.model import CoupledFlowModel
+    from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario
+
+    calls = {"n": 0}
+    original = CoupledFlowModel.move_grains
+
+    def move_then_interrupt(self, *a, **k):
+        positions = original(self, *a, **k)
+        calls["n"] += 1
+        if calls["n"] == 12:
+            raise KeyboardInterrupt
+        return positions
+
+    monkeypatch.setattr(CoupledFlowModel, "move_grains", move_then_interrupt)
+    out = tmp_path / "cut"
+    assert main(["radial", "--case", "B3", "--out", str(out), "--quiet"]) == 130
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and 0 < summary["steps"] < 12
+    positions = np.load(out / "fractures.npz")["positions"]
+    volumes = DomainGeometry(build_radial_scenario(RADIAL_CASES["B3"]).net).volumes(positions)
+    np.testing.assert_allclose(volumes, np.load(out / "network.npz")["domain_volume"], rtol=1e-12)
+
+
+@pytest.mark.yade
+def test_interrupted_rewind_keeps_the_dem_engines():
+    # Ctrl-C just after the engine-less snapshot is loaded must not leave YADE without engines
+    # (a partial radial run could not be written: its config reads the integrator's damping)
+    from hmdem.dem.assembly import DiscAssembly
+
+    r = np.array([13e-6, 21.6e-6])
+    grains = DiscAssembly(np.array([[0.0, 0.0], [r.sum(), 0.0]]), r, fixed=np.array([True, False]))
+    grains.save_state()
+    real = grains._O
+
+    class LoadThenInterrupt:
+        def __getattr__(self, name):
+            return getattr(real, name)
+
+        def __setattr__(self, name, value):
+            setattr(real, name, value)
+
+        def loadTmp(self, *args):
+            real.loadTmp(*args)
+            raise KeyboardInterrupt
+
+    grains._O = LoadThenInterrupt()
+    with pytest.raises(KeyboardInterrupt):
+        grains.restore_state()
+    grains._O = real
+    assert len(real.engines) > 0 and grains.damping == pytest.approx(0.7)
+
+
+@pytest.mark.yade
 def test_no_pocket_newton_reuse_and_damping_flags_reach_the_run(tmp_path):
     out = tmp_path / "b3"
     assert main(["radial", "--case", "B3", "--max-steps", "2", "--no-pocket-newton", "--pv-reuse-steps", "0",

@@ -165,6 +165,7 @@ class CoupledFlowModel(FlowModel):
         # a list to append a PVEvaluation to at every P-V evaluation (benchmarks/huang_pv_log.py); None: off
         self.pv_log: list | None = None
         self._predicting = False  # front-logic solves use dV = volume_rate x dt
+        self._inside_step = False  # a step's DEM snapshot is kept and not yet accepted
         self._update_apertures(0.0)
 
     # ---- grains ----------------------------------------------------------------------------
@@ -229,6 +230,16 @@ class CoupledFlowModel(FlowModel):
         those that have closed again)."""
         return self.opened & (self.detached_gap > self.opening_gap)
 
+    def run(self, state=None, progress=None):
+        """:meth:`FlowModel.run`; a run stopped inside a step (Ctrl-C, SIGTERM, divergence) is
+        rewound to the last accepted step when the rewound P-V iteration kept it, so that the
+        run directory's grains, contacts and apertures belong to the flow state it writes."""
+        state, rec = super().run(state, progress)
+        if self._inside_step:
+            self._rewind()
+            self._inside_step = False
+        return state, rec
+
     # ---- flow step with the P-V iteration --------------------------------------------------
     def implicit_step(self, state, blocked_guess):
         c, rec = self.coupling, self.coupling_record
@@ -245,6 +256,7 @@ class CoupledFlowModel(FlowModel):
         retried from t^n with half the step; the cap grows back after easy steps."""
         c = self.coupling
         self._rewind(save=True)
+        self._inside_step = True  # the DEM is at t^n in the snapshot until _accept
         for halving in range(c.max_dt_halvings + 1):
             try:
                 sol, fill, dt, limiter, iterations, converged = self._pv_step(state, blocked_guess)
@@ -335,6 +347,7 @@ class CoupledFlowModel(FlowModel):
         return self._sum_conductance(np.where(blocked, 0.0, g)) == 0.0
 
     def _accept(self, state, sol, fill, dt, limiter):
+        self._inside_step = False
         super()._accept(state, sol, fill, dt, limiter)
         volume = self.domain_volumes(self.positions)
         self.floored |= volume <= self.volume_floor

@@ -125,9 +125,12 @@ class DiscAssembly:
         self._engines = engines
 
     def restore_state(self) -> None:
-        """Return to the scene kept by :meth:`save_state`, with the running engines."""
-        self._O.loadTmp("hmdem-pv")
-        self._O.engines = self._engines
+        """Return to the scene kept by :meth:`save_state`, with the running engines (put back
+        even when Ctrl-C arrives just after the engine-less scene is loaded)."""
+        try:
+            self._O.loadTmp("hmdem-pv")
+        finally:
+            self._O.engines = self._engines
 
     def run(self, cycles: int) -> None:
         """Advance the DEM by ``cycles`` steps of :attr:`timestep`."""
