@@ -63,8 +63,9 @@ def plot_pattern(path, net: Network, saturation: np.ndarray, title: str, radii=N
     _finish_sample_plane(fig, ax, path, title, autoscale=False)
 
 
-def plot_pressure(path, net: Network, pressure: np.ndarray, times, p_in, title: str) -> None:
-    """Final pressure field and the mean injection pressure against time."""
+def plot_pressure(path, net: Network, pressure: np.ndarray, times, p_in, title: str, early_peak=None) -> None:
+    """Final pressure field and the mean injection pressure against time; ``early_peak``
+    ({"time": s, "pressure": Pa}) is marked when given."""
     tri, p = _domain_triangulation(net, pressure)
     fig, (a0, a1) = plt.subplots(1, 2, figsize=(11, 4.6))
     pc = a0.tripcolor(tri, facecolors=p / 1e3, cmap="viridis", edgecolors="none")
@@ -74,6 +75,9 @@ def plot_pressure(path, net: Network, pressure: np.ndarray, times, p_in, title: 
     a0.set_ylabel("y [mm]")
     a0.set_title("final pressure", fontsize=9)
     a1.plot(times, np.asarray(p_in) / 1e3, lw=1)
+    if early_peak is not None:
+        a1.plot([early_peak["time"]], [early_peak["pressure"] / 1e3], "o", mfc="none", color="C3", label="early peak")
+        a1.legend(fontsize=8, loc="lower right")
     a1.set_xlabel("t [s]")
     a1.set_ylabel("mean injection pressure [kPa]")
     a1.set_title(title, fontsize=9)

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .flow.diagnostics import classify_regime, fractal_dimension, mass_radius_dimension
+from .flow.diagnostics import classify_regime, early_peak, fractal_dimension, mass_radius_dimension
 from .flow.fluids import WEAK_COMPRESSION
 from .plots import plot_pattern, plot_pressure
 from .rundir import atomic_run_directory, write_json, write_rows, write_toml
@@ -42,6 +42,7 @@ def summarize(sc, model, state, rec, d_f: float | None = None) -> dict:
     net, fluids = sc.net, sc.setup.fluids
     rows = rec.rows
     p_in = np.array([r[2] for r in rows]) if rows else np.zeros(1)
+    early = early_peak([r[0] for r in rows], [r[2] for r in rows])
     volume = net.domain_volume
     saturation = float(np.sum(state.saturation * volume) / np.sum(volume))
     entry = np.abs(fluids.entry_pressure(net.pipe_aperture[model.pipes]))
@@ -59,6 +60,9 @@ def summarize(sc, model, state, rec, d_f: float | None = None) -> dict:
         "breakthrough_saturation": saturation if rec.status == "breakthrough" else float("nan"),
         "final_saturation": saturation,
         "peak_injection_pressure_pa": rec.peak_injection_pressure,
+        "early_peak_injection_pressure_pa": early.pressure,
+        "early_peak_time_s": early.time,
+        "early_peak_fell": early.fell,
         "peak_compression": rec.peak_compression,
         "weakly_compressible": rec.peak_compression <= WEAK_COMPRESSION,
         "final_injection_pressure_pa": float(p_in[-1]),
@@ -121,8 +125,9 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
         title = f"{sc.case.title}\nCa* = {sc.ca_star:.3g}, M = {sc.setup.fluids.viscosity_ratio:.3g}, t = {state.t:.4g} s, " \
                 f"{summary['regime']}, D_f = {summary['fractal_dimension']:.3f}"
         plot_pattern(tmp / "pattern.png", net, state.saturation, title, sc.packing_radii, overlay)
+        marked = {"time": summary["early_peak_time_s"], "pressure": summary["early_peak_injection_pressure_pa"]}
         plot_pressure(tmp / "pressure.png", net, state.pressure, [r[0] for r in rec.rows], [r[2] for r in rec.rows],
-                      f"{sc.case.name}: mean injection pressure")
+                      f"{sc.case.name}: mean injection pressure", marked if summary["early_peak_fell"] else None)
         write_vtu(tmp / "domains.vtu", net, state)
         if extra_files is not None:
             extra_files(tmp)

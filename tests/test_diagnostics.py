@@ -52,3 +52,34 @@ def test_radial_regime_label(opened, d_f, regime):
     from hmdem.coupling.radial import classify_radial_regime
 
     assert classify_radial_regime(opened, d_f) == regime
+
+
+def test_early_peak_is_the_peak_before_the_first_fall():
+    from hmdem.flow.diagnostics import early_peak
+
+    t = np.linspace(0.0, 1.0, 2001)
+    rise = 1e5 * t
+    # a monotonic rise (A1): its overall peak, at the end, and no fall
+    assert tuple(early_peak(t, rise)) == (pytest.approx(1e5), pytest.approx(1.0), False)
+    # dips of one step (a meniscus jump), falls of < 2 % and an end that sags do not end it
+    dipped = rise.copy()
+    dipped[1000] *= 0.5
+    dipped[1500:1520] = dipped[1499] * 0.985
+    dipped[-10:] = dipped[-11] * 0.999
+    peak = early_peak(t, dipped)
+    assert not peak.fell and peak.time == pytest.approx(t[-11])
+    # a hump (A3: peak 0.86 MPa at 0.2, down 10 %, then a rise past it): the hump's top
+    hump = np.where(t < 0.2, 4.3e6 * t, np.maximum(0.86e6 - 0.4e6 * (t - 0.2), 0.78e6 + 0.8e6 * (t - 0.4)))
+    peak = early_peak(t, hump)
+    assert peak.fell and peak.pressure == pytest.approx(0.86e6) and peak.time == pytest.approx(0.2)
+    assert hump.max() > 1.2 * peak.pressure
+    # a 3 % fall ends it, a 1 % one does not (a step down, a flat stretch, a rise past it)
+    for depth, fell in ((0.03, True), (0.01, False)):
+        shallow = np.where(t < 0.5, t, 0.5 * (1 - depth) + np.maximum(t - 0.7, 0.0))
+        assert early_peak(t, shallow).fell is fell
+    # negative pressures (suction) rising towards zero do not count as a fall; NaNs are left out
+    assert not early_peak(t, -1e5 + 5e4 * t).fell
+    nan = hump.copy()
+    nan[7] = np.nan
+    assert early_peak(t, nan).pressure == pytest.approx(0.86e6)
+    assert np.isnan(early_peak([], []).pressure)
