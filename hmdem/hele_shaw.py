@@ -234,7 +234,8 @@ def run_radial(args) -> int:
     summary = write_radial_run(out, sc, model, state, rec, argv=sys.argv[1:])
     early = ""
     if summary["early_peak_fell"]:
-        early = f" (early peak {summary['early_peak_injection_pressure_pa']:.4g} Pa at {summary['early_peak_time_s']:.3g} s)"
+        early = (f" (early peak {summary['early_peak_injection_pressure_pa']:.4g} Pa "
+                 f"at {summary['early_peak_time_s']:.3g} s)")
     print(f"{case.name}: {rec.status} at t = {state.t:.4g} s after {rec.steps} steps; regime: {summary['regime']}, "
           f"{summary['n_opened_contacts']} opened contacts, D_f = {summary['fractal_dimension']:.3f}, "
           f"peak injection pressure {summary['peak_injection_pressure_pa']:.4g} Pa{early}")

@@ -41,8 +41,9 @@ def summarize(sc, model, state, rec, d_f: float | None = None) -> dict:
     reference configuration)."""
     net, fluids = sc.net, sc.setup.fluids
     rows = rec.rows
-    p_in = np.array([r[2] for r in rows]) if rows else np.zeros(1)
-    early = early_peak([r[0] for r in rows], [r[2] for r in rows])
+    times, pressures = np.array([r[0] for r in rows]), np.array([r[2] for r in rows])
+    p_in = pressures if rows else np.zeros(1)
+    early = early_peak(times, pressures)
     volume = net.domain_volume
     saturation = float(np.sum(state.saturation * volume) / np.sum(volume))
     entry = np.abs(fluids.entry_pressure(net.pipe_aperture[model.pipes]))

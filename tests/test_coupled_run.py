@@ -215,8 +215,8 @@ def test_reduced_a3_opens_contacts(reduced_runs):
 
 @pytest.mark.xfail(strict=True, reason="known model discrepancy, issue 3 still open: on this 0.41 mm sample A3's "
                    "early peak is 1.005 MPa at 8.9 us (then a fall of 8-9 % and a rise to 1.18 MPa) and A1's "
-                   "maximum 73 kPa, ratio 13.7 (paper 6.6, digest H2 bound [4, 10]; at paper size 7.5 from 753 kPa and 100 kPa, "
-                   "decisions #51): on the small sample A1's maximum is lower and A3's early peak higher; the bound "
+                   "maximum 73 kPa, ratio 13.7 (paper 6.6, digest H2 bound [4, 10]; at paper size 7.5 from 753 kPa "
+                   "and 100 kPa, decisions #51): on the small sample A1's maximum is lower and A3's early peak higher; the bound "
                    "is kept so that a fix shows up (strict)")
 def test_reduced_a3_a1_peak_ratio(reduced_runs):
     # H2: A3's early peak (the one that initiates fractures) over A1's maximum (decisions #51)

@@ -60,8 +60,7 @@ def _run_channel(conn, slot: int, steps_done, stop, channel, forcings, plan, den
     conn.close()
 
 
-def run_in_workers(jobs, workers: int, progress,
-                   channel_done=lambda: None) -> tuple[bool, list[list]]:
+def run_in_workers(jobs, workers: int, progress, channel_done=lambda: None) -> tuple[bool, list[list]]:
     """Run ``jobs`` = [(channel, forcings, plan, density, seed)] on up to ``workers`` processes
     and set each channel's ``results``; ``progress(steps)`` is called with the steps done since
     its last call and ``channel_done()`` as each channel completes. Returns whether the run was
