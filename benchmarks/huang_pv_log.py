@@ -2,13 +2,15 @@
 
     .venv/bin/python benchmarks/huang_pv_log.py save --case A1 --until 0.0225 --checkpoint runs/a1_ckpt
     .venv/bin/python benchmarks/huang_pv_log.py log --checkpoint runs/a1_ckpt --steps 200 --csv runs/a1_pv.csv
+    .venv/bin/python benchmarks/huang_pv_log.py probe --checkpoint runs/a1_ckpt --domains 1433 841
 
 ``save`` runs a paper-size case to t = --until and keeps the YADE scene (``O.save``) and the
 pickled flow model and state, so that a late stretch of a run (A1 crawls from t ~ 0.023 s, ~45
 minutes in) can be studied again in minutes. ``log`` resumes the checkpoint for --steps flow
 steps with ``CoupledFlowModel.pv_log`` on, writes every P-V evaluation to CSV and prints which
 domains hold the largest mismatch. A resumed run repeats a straight one to the printed digits
-(checked on the reduced A1). This is a diagnostic: the checkpoint format is this script's own.
+(checked on the reduced A1). ``probe`` tests how smooth the P-V map is at the checkpoint's
+next step. This is a diagnostic: the checkpoint format is this script's own.
 """
 import argparse
 import collections
@@ -75,10 +77,13 @@ def resume(checkpoint: Path):
     return model, data["state"]
 
 
-def log(checkpoint: Path, steps: int, out_csv: Path, pocket_newton: bool = True,
-        reuse_steps: int | None = None, max_iter: int | None = None) -> None:
+def log(checkpoint: Path, steps: int, out_csv: Path, pocket_newton: bool | None = None,
+        reuse_steps: int | None = None, max_iter: int | None = None, rtol: float | None = None) -> None:
     model, state = resume(checkpoint)
-    model.coupling.pv_pocket_newton = pocket_newton
+    if rtol is not None:
+        model.coupling.pv_rtol = rtol
+    if pocket_newton is not None:
+        model.coupling.pv_pocket_newton = pocket_newton
     if max_iter is not None:
         model.coupling.pv_max_iter = max_iter
     if reuse_steps is not None:  # a fresh IQN (the checkpoint's keeps the pairs of its last steps)
@@ -111,6 +116,47 @@ def log(checkpoint: Path, steps: int, out_csv: Path, pocket_newton: bool = True,
     print(f"trapped pockets at the start: {int(pockets.sum())}; their share of the worst mismatches: {share:.0%}")
 
 
+def probe(checkpoint: Path, domains: list[int], deltas: list[float], dt_cap: float | None = None,
+          dem_cycles: int | None = None) -> None:
+    """How smooth is the P-V map p_trial -> p_calc at the checkpoint's next step? H is evaluated
+    at the predictor's p0 and at p0 +- delta on one domain at a time (DEM rewound each time);
+    a smooth map gives (H(p0 + d e_i) - H(p0)) / d independent of d and of its sign."""
+    from hmdem.flow.simulation import FlowModel
+
+    model, state = resume(checkpoint)
+    model.setup.t_max = np.inf
+    if dt_cap is not None:
+        model.coupling_dt = dt_cap
+    if dem_cycles is not None:
+        model.coupling.dem_cycles_per_step = dem_cycles
+    model.volume_change[:] = 0.0
+    model._predicting = model.coupling.pv_predictor
+    sol, _, dt, limiter = FlowModel.implicit_step(model, state, np.zeros(len(model.pipes), bool))
+    model._predicting = False
+    g, orient, pc = model.pipe_properties(state)
+    model._rewind(save=True)
+
+    def evaluate(p):
+        model.volume_change[:] = model.domain_volumes(model.move_grains(p, dt)) - model.reference_volume
+        calc, _ = model._trial(state, dt, g, orient, pc, sol.blocked)
+        model._rewind()
+        return calc.pressure
+
+    p0 = sol.pressure
+    h0 = evaluate(p0)
+    tolerance = model.coupling.pv_rtol * np.abs(h0).max() + model.coupling.pv_atol
+    print(f"t = {state.t:.6g} s, dt = {dt:.3g} s ({limiter}); |H(p0) - p0| = {np.abs(h0 - p0).max():.4g} Pa, "
+          f"tolerance {tolerance:.4g} Pa; the same p0 again differs by {np.abs(evaluate(p0) - h0).max():.3g} Pa")
+    print("domain  delta [Pa]  dH_i/dp_i  largest |H - H(p0)| [Pa] (where)")
+    for domain in domains:
+        for delta in [s * d for d in deltas for s in (1.0, -1.0)]:
+            p = p0.copy()
+            p[domain] += delta
+            change = evaluate(p) - h0
+            worst = int(np.argmax(np.abs(change)))
+            print(f"{domain:6d} {delta:11.4g} {change[domain] / delta:10.3f}  {change[worst]:10.4g} ({worst})")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -122,17 +168,28 @@ def main() -> None:
     g.add_argument("--checkpoint", type=Path, required=True)
     g.add_argument("--steps", type=int, default=200)
     g.add_argument("--csv", type=Path, required=True)
-    g.add_argument("--no-pocket-newton", action="store_true",
-                   help="leave the trapped pockets to IQN alone (CouplingSetup.pv_pocket_newton = False)")
+    g.add_argument("--pocket-newton", action=argparse.BooleanOptionalAction, default=None,
+                   help="the scalar Newton step on trapped pockets on or off (default: as checkpointed)")
     g.add_argument("--pv-reuse-steps", type=non_negative_int,
                    help="IQN reuses the secant pairs of this many earlier steps; given, IQN starts afresh "
                         "without the checkpoint's pairs (default: as checkpointed, pairs kept)")
     g.add_argument("--pv-max-iter", type=positive_int, help="P-V iteration cap per attempt (default: as checkpointed)")
+    g.add_argument("--pv-tol", type=float, help="relative P-V tolerance (default: as checkpointed)")
+    b = sub.add_parser("probe", help=probe.__doc__.split("\n")[0])
+    b.add_argument("--checkpoint", type=Path, required=True)
+    b.add_argument("--domains", type=int, nargs="+", required=True)
+    b.add_argument("--deltas", type=float, nargs="+", default=[1.0, 10.0, 100.0, 1000.0, 10000.0],
+                   help="pressure changes [Pa], each tried with both signs")
+    b.add_argument("--dt", type=float, help="cap on the flow step (default: the checkpoint's cap)")
+    b.add_argument("--dem-cycles", type=positive_int, help="DEM cycles per flow step (default: the stable DEM step)")
     args = parser.parse_args()
     if args.command == "save":
         save(args.case, args.until, args.checkpoint)
+    elif args.command == "log":
+        log(args.checkpoint, args.steps, args.csv, args.pocket_newton, args.pv_reuse_steps, args.pv_max_iter,
+            args.pv_tol)
     else:
-        log(args.checkpoint, args.steps, args.csv, not args.no_pocket_newton, args.pv_reuse_steps, args.pv_max_iter)
+        probe(args.checkpoint, args.domains, args.deltas, args.dt, args.dem_cycles)
 
 
 if __name__ == "__main__":

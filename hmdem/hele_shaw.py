@@ -64,16 +64,17 @@ def build_parser() -> argparse.ArgumentParser:
     rad.add_argument("--dem-cycles", type=positive_number,
                      help="DEM cycles per flow step (the paper: 2000); default: the stable DEM step")
     rad.add_argument("--pv-tol", type=positive_number, help="P-V iteration relative tolerance (default 1e-3)")
-    rad.add_argument("--pv-max-iter", type=positive_number, help="P-V iteration cap per attempt (default 12)")
+    rad.add_argument("--pv-max-iter", type=positive_number,
+                     help="P-V iteration cap per attempt (default 12; 24 for B1)")
     rad.add_argument("--pv-grow-after", type=positive_number,
                      help="easy steps in a row before a halved flow-step cap doubles back (default 1)")
     rad.add_argument("--pv-reuse-steps", type=non_negative_int,
                      help="earlier flow steps (same dt) whose secant pairs the quasi-Newton update reuses "
-                          "(default 5; 0 with --pv-max-iter 24 and --no-pocket-newton was fastest on B1's late stretch, "
-                          "BENCHMARKS.md)")
-    rad.add_argument("--no-pocket-newton", action="store_true",
-                     help="leave trapped pockets to the quasi-Newton update alone (default: a scalar Newton "
-                          "step on each, hmdem/coupling/pockets.py)")
+                          "(default 5; 0 for B1, whose map changes from step to step: BENCHMARKS.md)")
+    rad.add_argument("--pocket-newton", action=argparse.BooleanOptionalAction, default=None,
+                     help="a scalar Newton step on each trapped pocket after the quasi-Newton update "
+                          "(hmdem/coupling/pockets.py; default on, off for B1); --no-pocket-newton leaves "
+                          "the pockets to the quasi-Newton update alone")
     rad.add_argument("--damping", type=local_damping,
                      help="YADE local damping of the grains during the run, in [0, 1) (default 0.7, PFC's; the "
                           "seed does not state it; the sample settles at 0.7 either way)")
@@ -216,7 +217,8 @@ def run_radial(args) -> int:
     if args.pv_grow_after is not None:
         sc.coupling.pv_easy_steps_to_grow = int(args.pv_grow_after)
     sc.coupling.pv_rewind = not args.pv_continue
-    sc.coupling.pv_pocket_newton = not args.no_pocket_newton
+    if args.pocket_newton is not None:
+        sc.coupling.pv_pocket_newton = args.pocket_newton
     if args.pv_reuse_steps is not None:
         sc.coupling.pv_reuse_steps = args.pv_reuse_steps
     if args.damping is not None:

@@ -256,6 +256,19 @@ def test_no_pocket_newton_reuse_and_damping_flags_reach_the_run(tmp_path):
 
 
 @pytest.mark.yade
+def test_b1_runs_with_its_own_pv_settings_unless_the_flags_say_otherwise(tmp_path):
+    # decisions.md #52: B1's defaults are a cap of 24, no reuse, no pocket step; flags still win
+    own, flagged = tmp_path / "own", tmp_path / "flagged"
+    assert main(["radial", "--case", "B1", "--max-steps", "1", "--out", str(own), "--quiet"]) == 0
+    assert main(["radial", "--case", "B1", "--max-steps", "1", "--pocket-newton", "--pv-reuse-steps", "5",
+                 "--pv-max-iter", "12", "--out", str(flagged), "--quiet"]) == 0
+    coupling = tomllib.loads((own / "config.toml").read_text())["coupling"]
+    assert (coupling["pv_max_iter"], coupling["pv_reuse_steps"], coupling["pv_pocket_newton"]) == (24, 0, False)
+    coupling = tomllib.loads((flagged / "config.toml").read_text())["coupling"]
+    assert (coupling["pv_max_iter"], coupling["pv_reuse_steps"], coupling["pv_pocket_newton"]) == (12, 5, True)
+
+
+@pytest.mark.yade
 def test_threads_flag_reaches_yade(tmp_path):
     # OpenMP reads the thread count when YADE loads, so this needs a fresh process; 3, not 2,
     # so that OpenMP's own default (one per core, 2 on the CI machine) cannot pass for it

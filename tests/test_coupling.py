@@ -265,6 +265,23 @@ def test_radial_injection_rate_from_the_papers_inlet_perimeter():
     assert rate["B1"] == pytest.approx(rate["A1"], rel=0.002)  # 56.3 / 1.6 = 35.19 vs 176 / 5 = 35.2
 
 
+def test_b1_sets_its_own_pv_iteration_and_the_other_cases_keep_the_defaults():
+    # decisions.md #52: B1 runs with a cap of 24, no reused secant pairs and no pocket step;
+    # A1, A3 and B3 keep CouplingSetup's defaults
+    from dataclasses import fields
+
+    from hmdem.coupling.model import CouplingSetup
+    from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario
+
+    b1 = build_radial_scenario(RADIAL_CASES["B1"]).coupling
+    assert (b1.pv_max_iter, b1.pv_reuse_steps, b1.pv_pocket_newton) == (24, 0, False)
+    default = CouplingSetup()
+    for case in ("A1", "A3", "B3"):
+        coupling = build_radial_scenario(RADIAL_CASES[case]).coupling
+        assert all(getattr(coupling, f.name) == getattr(default, f.name) for f in fields(CouplingSetup))
+    assert all(hasattr(default, name) for case in RADIAL_CASES.values() for name, _ in case.coupling_defaults)
+
+
 def test_trapped_pockets_are_the_partly_filled_domains_enclosed_by_invaded_ones():
     from hmdem.coupling.pockets import trapped_pockets
 

@@ -48,6 +48,8 @@ class RadialCase:
     mean_aperture: float = 7.53e-6  # a0: the Ca* aperture scale
     aperture_spread: float = 0.0  # apertures come from the contact forces (Eq. 13), not drawn
     contact_gap: float = 0.08  # as for the fixed-grain packings (decisions.md)
+    # CouplingSetup fields this case sets otherwise (decisions.md #52); the CLI flags override them
+    coupling_defaults: tuple[tuple[str, object], ...] = ()
 
     @property
     def title(self) -> str:
@@ -58,7 +60,10 @@ class RadialCase:
 RADIAL_CASES = {
     "A1": RadialCase("A1", 5 * CP, 1.6, 1.0e-5, "infiltration"),
     "A3": RadialCase("A3", 5 * CP, 32.3, 8.0e-7, "infiltration-dominated with fracturing"),
-    "B1": RadialCase("B1", 176 * CP, 56.3, 1.0e-5, "infiltration-dominated with fracturing"),
+    # B1's P-V iteration converges faster with a higher cap, without reused secant pairs and
+    # without the pocket step (its map changes from step to step; BENCHMARKS.md, decisions #52)
+    "B1": RadialCase("B1", 176 * CP, 56.3, 1.0e-5, "infiltration-dominated with fracturing",
+                     coupling_defaults=(("pv_max_iter", 24), ("pv_reuse_steps", 0), ("pv_pocket_newton", False))),
     "B3": RadialCase("B3", 176 * CP, 1138.1, 8.0e-7, "fracturing-dominated"),
 }
 
@@ -118,7 +123,7 @@ def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, 
     ca = case.ca_star if ca_star is None else ca_star
     rate = rate_from_ca_star(ca, fluids, sigma, length, law.residual_aperture)
     setup = FlowSetup(fluids, rate, case.dt)
-    coupling = CouplingSetup(aperture_law=law, one_way=one_way)
+    coupling = CouplingSetup(aperture_law=law, one_way=one_way, **dict(case.coupling_defaults))
     # "all boundary grains are fixed, imitating the sealed cell edges" (digest §11.2): the grains
     # that touched a compaction wall and every grain on the contact graph's hull. A hull grain
     # left free has fluid on one side only and nothing outside it: it is pushed out of the cell
