@@ -88,6 +88,26 @@ def test_eq11_reference_values():
     assert [round(studies.eq11(x), 3) for x in (1.35, 1.7, 2.4)] == [0.1, 0.169, 0.264]
 
 
+def test_reynolds_ladder_lands_on_its_aims_and_holds_the_mach_bound():
+    # seed 003 §5 drives Re ~ 20-180 at u_max <= 0.30. On a channel whose Re grows as g^0.6 (drag
+    # rising) and whose u_max is 2e-3 Re, the forcing read from two drives lands on the next aim
+    # exactly (scaling g by the Re still missing would land at 106 for an aim of 120 from 88), an
+    # aim that would pass the bound becomes the Re at the bound, and a ladder already there stops
+    def row(g):
+        re = 400.0 * g**0.6
+        return {"g": g, "reynolds": re, "u_max": 2e-3 * re}
+
+    rows = [row(0.05), row(0.08)]
+    g, aim = studies.next_rung(rows, 120.0, 0.285)
+    assert aim == 120.0 and row(g)["reynolds"] == pytest.approx(120.0, rel=1e-12)
+    g, aim = studies.next_rung(rows + [row(g)], 180.0, 0.285)
+    assert aim == pytest.approx(142.5, rel=1e-12) and row(g)["u_max"] == pytest.approx(0.285, rel=1e-12)
+    assert studies.next_rung(rows + [row(g)], 180.0, 0.285) is None
+    # one drive: Re taken as proportional to g (the linear regime)
+    g, aim = studies.next_rung([{"g": 0.01, "reynolds": 20.0, "u_max": 0.04}], 50.0, 0.285)
+    assert (g, aim) == (pytest.approx(0.025, rel=1e-12), 50.0)
+
+
 # --- the automaton: packing, propagation, invariants ---------------------------------------
 
 

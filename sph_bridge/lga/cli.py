@@ -40,6 +40,7 @@ POISEUILLE_VELOCITIES = (0.02, 0.04, 0.06)  # mean velocities of the default dri
 ROUGH_VELOCITIES = (0.005, 0.01)  # mean velocities Q_full/delta_av aimed at: Darcy drives (Re ~ 3-19, decisions #50)
 NONLINEAR_REYNOLDS = (20, 50, 80, 115, 150, 180)  # seed 003 §5: Re ~ 20-180
 MACH_LIMIT = 0.30  # seed 003 §5: the largest velocity it allowed (digest C17)
+MACH_AIM = 0.95 * MACH_LIMIT  # the ladder's last drive aims 5 % under it: aims land within a few %
 
 
 class _Parser(OneLineParser):
@@ -423,7 +424,7 @@ def run_nonlinear(args) -> int:
 
     out = run_directory(args, {**common_config(args), "rough": rough_config(args, rough, []),
                                "smooth": {"half_rows": half_rows, "width": smooth.aperture},
-                               "ladder": {"reynolds": list(NONLINEAR_REYNOLDS)}},
+                               "ladder": {"reynolds": list(NONLINEAR_REYNOLDS), "mach_aim": MACH_AIM}},
                         summary, args.timeseries, write)
     if "rough_drag_increase" in summary and "smooth_drag_increase" in summary:
         print(f"lga nonlinear: {status}; Delta P/Q rises by {100 * summary['rough_drag_increase']:.1f} % (rough) and "
@@ -435,16 +436,16 @@ def run_nonlinear(args) -> int:
 
 def reynolds_ladder(args, name, channel, plan, bar) -> None:
     """Drives aimed at each Re of :data:`NONLINEAR_REYNOLDS`, appended to ``channel.results`` as
-    they finish (a KeyboardInterrupt keeps those, and the partial window if it averaged): the
-    next forcing scales the last one by the Re still missing (the resistance rises slowly, so one
-    step lands close)."""
+    they finish (a KeyboardInterrupt keeps those, and the partial window if it averaged). Each
+    forcing follows from the drives before it (:func:`studies.next_rung`); an aim whose u_max
+    would pass :data:`MACH_AIM` is replaced by the Re at that velocity, and that drive is the last."""
     from .flow import drive
     from .lattice import Lattice
 
     lattice = Lattice(channel.geometry, density=args.density, seed=args.seed)
     nu = viscosity(args.density)
-    g = studies.forcings_for_velocities([NONLINEAR_REYNOLDS[0] * nu / channel.aperture], channel.aperture,
-                                        args.density)[0]
+    aim = NONLINEAR_REYNOLDS[0]
+    g = studies.forcings_for_velocities([aim * nu / channel.aperture], channel.aperture, args.density)[0]
     g /= max(studies.eq11(studies.opening(channel)), 0.05) if name == "rough" else 1.0
     for k, target in enumerate(NONLINEAR_REYNOLDS):
         series = []
@@ -452,19 +453,22 @@ def reynolds_ladder(args, name, channel, plan, bar) -> None:
             result = drive(lattice, g, plan.spinup if k == 0 else plan.spinup // 2, plan.average, progress=bar,
                            timeseries=series, precision=plan.precision, max_average=plan.max_average)
         finally:
-            args.timeseries += [(s[0], f"{name}-Re{target}", *s[1:]) for s in series]
+            args.timeseries += [(s[0], f"{name}-Re{aim:.0f}", *s[1:]) for s in series]
         if result.averaging_steps > 0:
             channel.results.append(result)
         if result.interrupted:
             raise KeyboardInterrupt
-        if k + 1 < len(NONLINEAR_REYNOLDS):
-            last = channel.rows()[-1]
-            scale = NONLINEAR_REYNOLDS[k + 1] / max(last["reynolds"], 1e-9)
-            if last["u_max"] * scale > MACH_LIMIT:  # C17: the next drive would pass u = 0.30
-                print(f"lga nonlinear: {name} ladder stops at Re = {last['reynolds']:.0f} (the next drive "
-                      f"would exceed u_max = {MACH_LIMIT})")
-                break
-            g = min(0.9, g * scale)
+        if aim < target or k + 1 == len(NONLINEAR_REYNOLDS):
+            break  # the last aim, or one held at the Mach bound (C17)
+        rung = studies.next_rung(channel.rows(), NONLINEAR_REYNOLDS[k + 1], MACH_AIM)
+        if rung is None:
+            print(f"lga nonlinear: {name} ladder stops at Re = {channel.rows()[-1]['reynolds']:.0f} "
+                  f"(at u_max = {MACH_AIM} already)")
+            break
+        g, aim = rung
+        if aim < NONLINEAR_REYNOLDS[k + 1]:
+            print(f"lga nonlinear: {name} ladder aims at Re = {aim:.0f} instead of {NONLINEAR_REYNOLDS[k + 1]} "
+                  f"to keep u_max near {MACH_AIM} (C17: u <= {MACH_LIMIT})")
 
 
 def main(argv) -> int:
