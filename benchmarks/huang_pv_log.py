@@ -8,7 +8,8 @@
 pickled flow model and state, so that a late stretch of a run (A1 crawls from t ~ 0.023 s, ~45
 minutes in) can be studied again in minutes. ``log`` resumes the checkpoint for --steps flow
 steps with ``CoupledFlowModel.pv_log`` on, writes every P-V evaluation to CSV and prints which
-domains hold the largest mismatch. A resumed run repeats a straight one to the printed digits
+domains hold the largest mismatch (``--span`` runs a stretch of simulated time instead, and
+``--dt`` changes the nominal flow step). A resumed run repeats a straight one to the printed digits
 (checked on the reduced A1). ``probe`` tests how smooth the P-V map is at the checkpoint's
 next step. This is a diagnostic: the checkpoint format is this script's own.
 """
@@ -78,8 +79,12 @@ def resume(checkpoint: Path):
 
 
 def log(checkpoint: Path, steps: int, out_csv: Path, pocket_newton: bool | None = None,
-        reuse_steps: int | None = None, max_iter: int | None = None, rtol: float | None = None) -> None:
+        reuse_steps: int | None = None, max_iter: int | None = None, rtol: float | None = None,
+        dt: float | None = None, span: float | None = None) -> None:
     model, state = resume(checkpoint)
+    if dt is not None:  # the nominal flow step, as radial --dt sets it
+        model.setup.dt = dt
+        model.coupling_dt = min(model.coupling_dt, dt)
     if rtol is not None:
         model.coupling.pv_rtol = rtol
     if pocket_newton is not None:
@@ -92,9 +97,10 @@ def log(checkpoint: Path, steps: int, out_csv: Path, pocket_newton: bool | None 
     model.pv_log = []
     pockets = np.zeros(model.net.n_domains, bool)
     pockets[trapped_pockets(state.invaded, state.saturation, model.pipe_a, model.pipe_b)] = True
-    t0, halvings0 = state.t, model.coupling_record.dt_halvings  # the record is cumulative: pickled with the run
-    model.setup.t_max = np.inf
-    model.setup.max_steps = steps
+    record = model.coupling_record  # cumulative: pickled with the run
+    t0, halvings0, dem0, rewind0 = state.t, record.dt_halvings, record.dem_seconds, record.rewind_seconds
+    model.setup.t_max = np.inf if span is None else state.t + span
+    model.setup.max_steps = steps if span is None else 10**9
     start = time.perf_counter()
     state, rec = model.run(state)
     attempts = model.pv_log
@@ -103,7 +109,8 @@ def log(checkpoint: Path, steps: int, out_csv: Path, pocket_newton: bool | None 
         writer.writerow([fl.name for fl in fields(PVEvaluation)])
         writer.writerows(asdict(a).values() for a in attempts)
     print(f"t {t0:.6g} -> {state.t:.6g} s: {rec.steps} steps, {len(attempts)} evaluations, "
-          f"{model.coupling_record.dt_halvings - halvings0} halvings, {time.perf_counter() - start:.0f} s")
+          f"{record.dt_halvings - halvings0} halvings, {time.perf_counter() - start:.0f} s "
+          f"(DEM {record.dem_seconds - dem0:.0f} s, DEM saves and rewinds {record.rewind_seconds - rewind0:.0f} s)")
     unconverged = [a for a in attempts if a.mismatch_over_tolerance > 1.0]
     worst = collections.Counter(a.worst_domain for a in unconverged)
     print(f"{len(unconverged)} evaluations above tolerance; the domains holding the largest mismatch:")
@@ -137,8 +144,7 @@ def probe(checkpoint: Path, domains: list[int], deltas: list[float], dt_cap: flo
     model._rewind(save=True)
 
     def evaluate(p):
-        model.volume_change[:] = model.domain_volumes(model.move_grains(p, dt)) - model.reference_volume
-        calc, _ = model._trial(state, dt, g, orient, pc, sol.blocked)
+        calc, _ = model._pv_evaluation(state, dt, model.move_grains(p, dt), g, orient, pc, sol.blocked)
         model._rewind()
         return calc.pressure
 
@@ -175,6 +181,8 @@ def main() -> None:
                         "without the checkpoint's pairs (default: as checkpointed, pairs kept)")
     g.add_argument("--pv-max-iter", type=positive_int, help="P-V iteration cap per attempt (default: as checkpointed)")
     g.add_argument("--pv-tol", type=float, help="relative P-V tolerance (default: as checkpointed)")
+    g.add_argument("--dt", type=float, help="nominal flow step, as radial --dt (default: as checkpointed)")
+    g.add_argument("--span", type=float, help="run this much simulated time [s] instead of --steps steps")
     b = sub.add_parser("probe", help=probe.__doc__.split("\n")[0])
     b.add_argument("--checkpoint", type=Path, required=True)
     b.add_argument("--domains", type=int, nargs="+", required=True)
@@ -187,7 +195,7 @@ def main() -> None:
         save(args.case, args.until, args.checkpoint)
     elif args.command == "log":
         log(args.checkpoint, args.steps, args.csv, args.pocket_newton, args.pv_reuse_steps, args.pv_max_iter,
-            args.pv_tol)
+            args.pv_tol, args.dt, args.span)
     else:
         probe(args.checkpoint, args.domains, args.deltas, args.dt, args.dem_cycles)
 

@@ -216,35 +216,6 @@ def test_interrupted_radial_run_keeps_the_last_accepted_grains(tmp_path, monkeyp
 
 
 @pytest.mark.yade
-def test_interrupted_rewind_keeps_the_dem_engines():
-    # Ctrl-C just after the engine-less snapshot is loaded must not leave YADE without engines
-    # (a partial radial run could not be written: its config reads the integrator's damping)
-    from hmdem.dem.assembly import DiscAssembly
-
-    r = np.array([13e-6, 21.6e-6])
-    grains = DiscAssembly(np.array([[0.0, 0.0], [r.sum(), 0.0]]), r, fixed=np.array([True, False]))
-    grains.save_state()
-    real = grains._O
-
-    class LoadThenInterrupt:
-        def __getattr__(self, name):
-            return getattr(real, name)
-
-        def __setattr__(self, name, value):
-            setattr(real, name, value)
-
-        def loadTmp(self, *args):
-            real.loadTmp(*args)
-            raise KeyboardInterrupt
-
-    grains._O = LoadThenInterrupt()
-    with pytest.raises(KeyboardInterrupt):
-        grains.restore_state()
-    grains._O = real
-    assert len(real.engines) > 0 and grains.damping == pytest.approx(0.7)
-
-
-@pytest.mark.yade
 def test_no_pocket_newton_reuse_and_damping_flags_reach_the_run(tmp_path):
     out = tmp_path / "b3"
     assert main(["radial", "--case", "B3", "--max-steps", "2", "--no-pocket-newton", "--pv-reuse-steps", "0",

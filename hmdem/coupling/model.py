@@ -287,6 +287,12 @@ class CoupledFlowModel(FlowModel):
             self.volume_change[:] = self.volume_rate * dt
         return super()._trial(state, dt, g, orient, pc, blocked, hold)
 
+    def _pv_evaluation(self, state, dt, positions, g, orient, pc, blocked):
+        """One evaluation of the P-V map H (digest §6): the domain volumes of the grains moved to
+        ``positions`` enter the Eq. 15 balance as dV, and the flow is re-solved from t^n."""
+        self.volume_change[:] = self.domain_volumes(positions) - self.reference_volume
+        return self._trial(state, dt, g, orient, pc, blocked)
+
     def _pv_step(self, state, blocked_guess):
         """One flow step at the front logic's dt with the P-V iteration; also returns the
         iteration count and whether it converged."""
@@ -312,8 +318,7 @@ class CoupledFlowModel(FlowModel):
         p_trial = sol.pressure
         self.quasi_newton.new_step(dt)
         for iteration in range(1, c.pv_max_iter + 1):
-            self.volume_change[:] = self.domain_volumes(positions) - self.reference_volume
-            calc, fill = self._trial(state, dt, g, orient, pc, sol.blocked)
+            calc, fill = self._pv_evaluation(state, dt, positions, g, orient, pc, sol.blocked)
             mismatch = np.abs(calc.pressure - p_trial)
             scale = max(np.abs(state.pressure).max(), np.abs(p_trial).max(), c.pv_atol)
             if not np.isfinite(mismatch).all() or mismatch.max() > DIVERGED * scale:
