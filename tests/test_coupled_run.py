@@ -38,6 +38,18 @@ def test_permanent_force_compresses_a_contact_by_f_over_k():
     assert grains.normal_forces(np.array([[0, 1]]))[0] == pytest.approx(force, rel=1e-6)
 
 
+def contact_set(grains):
+    """The grain pairs in contact, as a set."""
+    return {tuple(p) for p in grains.contact_forces()[0]}
+
+
+def outward_push(grains, centre, scale):
+    """Forces [N/m] pushing grains away from ``centre``, fading over ~0.1 mm."""
+    d = grains.positions() - centre
+    r = np.linalg.norm(d, axis=1, keepdims=True)
+    return scale * d / np.maximum(r, 1e-12) * np.exp(-(r / 1e-4) ** 2)
+
+
 def test_rewound_dem_repeats_a_straight_run(small_sample):
     # the P-V iteration rewinds the DEM to t^n: a trial under other forces, a rewind and a rerun
     # under the true forces must give the straight run's positions and contacts. 1e-12 of the
@@ -52,12 +64,10 @@ def test_rewound_dem_repeats_a_straight_run(small_sample):
     centre = pk.centres.mean(axis=0)
 
     def outward(scale):
-        d = grains.positions() - centre
-        r = np.linalg.norm(d, axis=1, keepdims=True)
-        return scale * d / np.maximum(r, 1e-12) * np.exp(-(r / 1e-4) ** 2)
+        return outward_push(grains, centre, scale)
 
     def contacts():
-        return {tuple(p) for p in grains.contact_forces()[0]}
+        return contact_set(grains)
 
     made = broken = 0
     for load in (20.0, 200.0, 2000.0):
@@ -94,12 +104,10 @@ def test_rewind_interrupted_half_way_is_completed_by_the_next(small_sample, monk
     pk = small_sample
     grains = DiscAssembly(pk.centres, pk.radii, fixed=pk.fixed)
     grains.run(200)
-    d = grains.positions() - pk.centres.mean(axis=0)
-    r = np.linalg.norm(d, axis=1, keepdims=True)
-    push = 1e4 * d / np.maximum(r, 1e-12) * np.exp(-(r / 1e-4) ** 2)
+    push = outward_push(grains, pk.centres.mean(axis=0), 1e4)
 
     def contacts():
-        return {tuple(p) for p in grains.contact_forces()[0]}
+        return contact_set(grains)
 
     grains.save_state()
     saved, positions, velocities = contacts(), grains.positions(), grains.velocities()
