@@ -33,7 +33,7 @@ from hmdem.coupling.quasi_newton import InterfaceQuasiNewton  # noqa: E402
 from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, start_grains  # noqa: E402
 from hmdem.dem.assembly import DiscAssembly  # noqa: E402
 
-GRAIN_FIELDS = ("radii", "ids", "fixed", "k_n", "k_s", "_index")
+GRAIN_FIELDS = ("radii", "ids", "fixed", "k_n", "k_s", "friction", "_index")
 
 
 def save(case: str, until: float, checkpoint: Path) -> None:
@@ -62,6 +62,7 @@ def resume(checkpoint: Path):
         data = pickle.load(f)
     grains = object.__new__(DiscAssembly)
     grains._O = O
+    grains.friction = 0.6  # checkpoints saved before it was kept: the Huang cases' Coulomb coefficient
     for key, value in data["grains"].items():
         setattr(grains, key, value)
     model = data["model"]
@@ -80,8 +81,10 @@ def resume(checkpoint: Path):
 
 def log(checkpoint: Path, steps: int, out_csv: Path, pocket_newton: bool | None = None,
         reuse_steps: int | None = None, max_iter: int | None = None, rtol: float | None = None,
-        dt: float | None = None, span: float | None = None) -> None:
+        dt: float | None = None, span: float | None = None, skeleton_newton: bool | None = None) -> None:
     model, state = resume(checkpoint)
+    if skeleton_newton is not None:
+        model.coupling.pv_skeleton_newton = skeleton_newton
     if dt is not None:  # the nominal flow step, as radial --dt sets it
         model.setup.dt = dt
         model.coupling_dt = min(model.coupling_dt, dt)
@@ -182,6 +185,8 @@ def main() -> None:
     g.add_argument("--pv-max-iter", type=positive_int, help="P-V iteration cap per attempt (default: as checkpointed)")
     g.add_argument("--pv-tol", type=float, help="relative P-V tolerance (default: as checkpointed)")
     g.add_argument("--dt", type=float, help="nominal flow step, as radial --dt (default: as checkpointed)")
+    g.add_argument("--skeleton-newton", action=argparse.BooleanOptionalAction, default=None,
+                   help="precondition IQN with the linearised skeleton's Newton step (default: as checkpointed)")
     g.add_argument("--span", type=float, help="run this much simulated time [s] instead of --steps steps")
     b = sub.add_parser("probe", help=probe.__doc__.split("\n")[0])
     b.add_argument("--checkpoint", type=Path, required=True)
@@ -195,7 +200,7 @@ def main() -> None:
         save(args.case, args.until, args.checkpoint)
     elif args.command == "log":
         log(args.checkpoint, args.steps, args.csv, args.pocket_newton, args.pv_reuse_steps, args.pv_max_iter,
-            args.pv_tol, args.dt, args.span)
+            args.pv_tol, args.dt, args.span, args.skeleton_newton)
     else:
         probe(args.checkpoint, args.domains, args.deltas, args.dt, args.dem_cycles)
 

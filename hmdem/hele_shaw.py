@@ -73,8 +73,12 @@ def build_parser() -> argparse.ArgumentParser:
                           "(default 5; 0 for B1, whose map changes from step to step: BENCHMARKS.md)")
     rad.add_argument("--pocket-newton", action=argparse.BooleanOptionalAction, default=None,
                      help="a scalar Newton step on each trapped pocket after the quasi-Newton update "
-                          "(hmdem/coupling/pockets.py; default on, off for B1); --no-pocket-newton leaves "
+                          "(hmdem/coupling/pockets.py; default on, off for B1 and B3); --no-pocket-newton leaves "
                           "the pockets to the quasi-Newton update alone")
+    rad.add_argument("--skeleton-newton", action=argparse.BooleanOptionalAction, default=None,
+                     help="precondition the quasi-Newton update with the Newton step of the linearised grain "
+                          "skeleton (hmdem/coupling/skeleton.py; default on, off for A3); --no-skeleton-newton "
+                          "gives the plain quasi-Newton update")
     rad.add_argument("--damping", type=local_damping,
                      help="YADE local damping of the grains during the run, in [0, 1) (default 0.7, PFC's; the "
                           "seed does not state it; the sample settles at 0.7 either way)")
@@ -221,6 +225,8 @@ def run_radial(args) -> int:
         sc.coupling.pv_pocket_newton = args.pocket_newton
     if args.pv_reuse_steps is not None:
         sc.coupling.pv_reuse_steps = args.pv_reuse_steps
+    if args.skeleton_newton is not None:
+        sc.coupling.pv_skeleton_newton = args.skeleton_newton
     if args.damping is not None:
         sc.coupling.dem_damping = args.damping
     if args.t_max is not None:

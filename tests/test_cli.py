@@ -180,7 +180,8 @@ def test_radial_run_directory_contract(tmp_path):
     assert fractures["positions"].shape == (1395, 2)
     config = tomllib.loads((out / "config.toml").read_text())
     assert config["coupling"]["one_way"] is False and config["aperture_law"]["residual_aperture"] == 7.53e-6
-    assert config["coupling"]["pv_pocket_newton"] is True  # --no-pocket-newton turns it off
+    # B3's defaults (decisions #55): the skeleton's Newton step, no pocket step
+    assert config["coupling"]["pv_skeleton_newton"] is True and config["coupling"]["pv_pocket_newton"] is False
     assert config["coupling"]["pv_reuse_steps"] == 5
     # the count YADE runs with (import_yade: OMP_NUM_THREADS if set, else 1)
     assert config["dem"]["threads"] == int(os.environ.get("OMP_NUM_THREADS", "1"))
@@ -216,13 +217,14 @@ def test_interrupted_radial_run_keeps_the_last_accepted_grains(tmp_path, monkeyp
 
 
 @pytest.mark.yade
-def test_no_pocket_newton_reuse_and_damping_flags_reach_the_run(tmp_path):
+def test_pocket_newton_reuse_skeleton_and_damping_flags_reach_the_run(tmp_path):
     out = tmp_path / "b3"
-    assert main(["radial", "--case", "B3", "--max-steps", "2", "--no-pocket-newton", "--pv-reuse-steps", "0",
-                 "--damping", "0.25", "--out", str(out), "--quiet"]) == 0
+    assert main(["radial", "--case", "B3", "--max-steps", "2", "--pocket-newton", "--pv-reuse-steps", "0",
+                 "--no-skeleton-newton", "--damping", "0.25", "--out", str(out), "--quiet"]) == 0
     config = tomllib.loads((out / "config.toml").read_text())
     coupling = config["coupling"]
-    assert coupling["pv_pocket_newton"] is False and coupling["pv_reuse_steps"] == 0
+    assert coupling["pv_pocket_newton"] is True and coupling["pv_reuse_steps"] == 0
+    assert coupling["pv_skeleton_newton"] is False
     assert coupling["dem_damping"] == 0.25 and config["dem"]["damping"] == 0.25  # as YADE's integrator has it
 
 

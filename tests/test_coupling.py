@@ -265,20 +265,24 @@ def test_radial_injection_rate_from_the_papers_inlet_perimeter():
     assert rate["B1"] == pytest.approx(rate["A1"], rel=0.002)  # 56.3 / 1.6 = 35.19 vs 176 / 5 = 35.2
 
 
-def test_b1_sets_its_own_pv_iteration_and_the_other_cases_keep_the_defaults():
-    # decisions.md #52: B1 runs with a cap of 24, no reused secant pairs and no pocket step;
-    # A1, A3 and B3 keep CouplingSetup's defaults
+def test_cases_set_their_own_pv_iteration_and_a1_keeps_the_defaults():
+    # decisions.md #52, #55: B1 runs with a cap of 24, no reused secant pairs and no pocket step,
+    # B3 without the pocket step, A3 without the skeleton's Newton step; A1 keeps CouplingSetup's
     from dataclasses import fields
 
     from hmdem.coupling.model import CouplingSetup
     from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario
 
-    b1 = build_radial_scenario(RADIAL_CASES["B1"]).coupling
-    assert (b1.pv_max_iter, b1.pv_reuse_steps, b1.pv_pocket_newton) == (24, 0, False)
+    def settings(case):
+        c = build_radial_scenario(RADIAL_CASES[case]).coupling
+        return c.pv_max_iter, c.pv_reuse_steps, c.pv_pocket_newton, c.pv_skeleton_newton
+
+    assert settings("B1") == (24, 0, False, True)
+    assert settings("B3") == (12, 5, False, True)
+    assert settings("A3") == (12, 5, True, False)
     default = CouplingSetup()
-    for case in ("A1", "A3", "B3"):
-        coupling = build_radial_scenario(RADIAL_CASES[case]).coupling
-        assert all(getattr(coupling, f.name) == getattr(default, f.name) for f in fields(CouplingSetup))
+    coupling = build_radial_scenario(RADIAL_CASES["A1"]).coupling
+    assert all(getattr(coupling, f.name) == getattr(default, f.name) for f in fields(CouplingSetup))
     assert all(hasattr(default, name) for case in RADIAL_CASES.values() for name, _ in case.coupling_defaults)
 
 

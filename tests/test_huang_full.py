@@ -2,9 +2,9 @@
 
 Each case runs once per session, through the same command a user types
 (``python -m hmdem.hele_shaw radial --case X``), to breakthrough; the assertions read the run
-directory. Wall times on 2-core machines are in BENCHMARKS.md: B3 17-33 min, B3 one-way
-under a minute, A3 8-22 min, A1 23-65 min (both were slowed by trapped air pockets until those
-got their own Newton step, decisions #45). Tolerances are the digest's
+directory. Wall times on 2-core machines are in BENCHMARKS.md: B3 7-33 min (7 with the
+skeleton's Newton step, decisions #55), B3 one-way under a minute, A3 5-22 min, A1 19-65 min
+(both were slowed by trapped air pockets until those got their own Newton step, decisions #45). Tolerances are the digest's
 (§13.3); where the model misses a claim the test is a strict expected failure that names the
 measured figure, so that a fix shows up.
 """

@@ -9,6 +9,7 @@ current vertex positions: exactly the shoelace area of its centre polygon, x 1 m
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..network.network import OUTSIDE, Network
 
@@ -46,6 +47,22 @@ class DomainGeometry:
         """Domain volumes [m^3 per m] at grain positions ``points`` (n_grains, 2)."""
         area = self.orientation * signed_triangle_areas(points, self.triangles)
         return np.bincount(self.triangle_domain, weights=area, minlength=self.n_domains)
+
+    def volume_gradient(self, points: np.ndarray) -> sp.csr_matrix:
+        """dV/dx: the sparse (n_domains, 2 n_grains) derivative of :meth:`volumes` with respect to
+        the grain centres, columns (x, y) of grain 0, grain 1, ... A triangle's area changes at
+        vertex a by half the perpendicular of the opposite edge, (y_b - y_c, x_c - x_b) / 2."""
+        t = self.triangles
+        rows, cols, values = [], [], []
+        for corner in range(3):
+            b, c = points[t[:, (corner + 1) % 3]], points[t[:, (corner + 2) % 3]]
+            grad = 0.5 * self.orientation[:, None] * np.c_[b[:, 1] - c[:, 1], c[:, 0] - b[:, 0]]
+            for k in (0, 1):
+                rows.append(self.triangle_domain)
+                cols.append(2 * t[:, corner] + k)
+                values.append(grad[:, k])
+        shape = (self.n_domains, 2 * len(points))
+        return sp.csr_matrix((np.concatenate(values), (np.concatenate(rows), np.concatenate(cols))), shape=shape)
 
     def centroids(self, points: np.ndarray) -> np.ndarray:
         area = self.orientation * signed_triangle_areas(points, self.triangles)

@@ -11,8 +11,9 @@ predictor; decisions.md #18): that gives p_trial. Then, at that dt:
 2. dV_i = V_i(grains now) - V_i^n enters the pressure equation as -dV/dt and it is re-solved,
    giving p_calc;
 3. until |p_calc - p_trial| <= rtol max|p| + atol in every domain (the paper tests the inflow
-   domain only), p_trial is updated by interface quasi-Newton (IQN-ILS, quasi_newton.py),
-   followed by a scalar Newton step on each trapped pocket (pockets.py).
+   domain only), p_trial is updated by interface quasi-Newton (IQN-ILS, quasi_newton.py) on the
+   map preconditioned by the Newton step of the linearised grain skeleton (skeleton.py), and
+   by a scalar Newton step on each trapped pocket (pockets.py); each case chooses which.
    A step that does not converge within the cap, or diverges, is retried from t^n at half the
    step (up to ``max_dt_halvings`` times); the cap grows back after easy steps.
 
@@ -39,19 +40,22 @@ from typing import Protocol
 
 import numpy as np
 
-from ..flow.grain_forces import grain_pressure_forces
+from ..flow.grain_forces import grain_pressure_forces, pressure_force_matrix
 from ..flow.simulation import FlowModel, FlowSetup, SimulationDiverged
 from ..network.network import Network
 from .apertures import ApertureLaw
 from .geometry import DomainGeometry, contact_gaps
 from .pockets import PocketNewton, trapped_pockets
 from .quasi_newton import InterfaceQuasiNewton
+from .skeleton import SkeletonNewton, skeleton_stiffness
 
 
 DIVERGED = 1e3  # a P-V mismatch this many times the step's pressure scale is divergence
 # a domain squeezed below this fraction of its initial area is held there: its grains have
 # rearranged beyond what the fixed network topology describes (the polygon would fold over)
 VOLUME_FLOOR = 0.01
+# a contact whose shear force is within 1 % of the Coulomb limit counts as sliding (skeleton.py)
+SLIDING = 0.99
 
 
 class GrainModel(Protocol):
@@ -60,6 +64,9 @@ class GrainModel(Protocol):
     radii: np.ndarray
     timestep: float
     k_n: float  # contact normal stiffness [N/m per m of depth]
+    k_s: float  # contact shear stiffness [N/m per m of depth]
+    fixed: np.ndarray  # grains the DEM holds in place
+    friction: float  # Coulomb coefficient of the contacts
 
     def positions(self) -> np.ndarray: ...
     def save_state(self) -> None: ...
@@ -67,6 +74,8 @@ class GrainModel(Protocol):
     def set_external_forces(self, forces: np.ndarray) -> None: ...
     def run(self, cycles: int) -> None: ...
     def normal_forces(self, pairs: np.ndarray) -> np.ndarray: ...
+    def contacts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+    def masses(self) -> np.ndarray: ...
 
 
 @dataclass
@@ -94,7 +103,7 @@ class CouplingSetup:
     # smoothly the first iteration then already converges
     pv_predictor: bool = True
     # trapped pockets (pockets.py): each IQN update is followed by a safeguarded scalar Newton
-    # step on their trial pressures
+    # step on their trial pressures (B1 and B3 leave it off: decisions #52, #55)
     pv_pocket_newton: bool = True
     # flow steps of the same dt whose secant pairs the IQN update reuses (IQN-ILS(q)); 0: none.
     # They save ~10 % over the first steps of A3 and B3 and hurt where the map changes from
@@ -103,6 +112,10 @@ class CouplingSetup:
     # YADE local damping of the grains during the run (the sample always settles at 0.7). The
     # seed does not state it; 0.7 is PFC's default (digest §2.4, decisions #49)
     dem_damping: float = 0.7
+    # precondition the IQN update with the Newton step of the linearised grain skeleton
+    # (skeleton.py): IQN then works on p -> p + (I - J)^-1 (H(p) - p) (decisions #55)
+    pv_skeleton_newton: bool = True
+    skeleton_inertia_factor: float = 0.5  # c in the grains' m / (c dt^2) (skeleton.py)
 
 
 @dataclass(frozen=True)
@@ -317,6 +330,7 @@ class CoupledFlowModel(FlowModel):
         g, orient, pc = self.pipe_properties(state)
         p_trial = sol.pressure
         self.quasi_newton.new_step(dt)
+        newton = None  # the linearised skeleton's Newton step, built at the first unconverged evaluation
         for iteration in range(1, c.pv_max_iter + 1):
             calc, fill = self._pv_evaluation(state, dt, positions, g, orient, pc, sol.blocked)
             mismatch = np.abs(calc.pressure - p_trial)
@@ -336,7 +350,11 @@ class CoupledFlowModel(FlowModel):
             if iteration == c.pv_max_iter:
                 break
             if c.pv_rewind:
-                p_next = self.quasi_newton.update(p_trial, calc.pressure)
+                correction = calc.pressure - p_trial
+                if c.pv_skeleton_newton:
+                    newton = newton or self._skeleton_newton(state, dt, g, calc.blocked)
+                    correction = newton.step(correction)
+                p_next = self.quasi_newton.update(p_trial, p_trial + correction)
                 if len(pockets):
                     p_next[pockets] = self.pocket_newton.update(p_trial, calc.pressure, p_next,
                                                                 self._closed(calc.blocked, g)[pockets], tolerance)
@@ -346,6 +364,21 @@ class CoupledFlowModel(FlowModel):
                 p_trial = calc.pressure
             positions = self.move_grains(p_trial, dt)
         return sol, fill, dt, limiter, c.pv_max_iter, False
+
+    def _skeleton_newton(self, state, dt: float, g: np.ndarray, blocked: np.ndarray) -> SkeletonNewton:
+        """The Newton step of the linearised P-V map at the grains of t^n (skeleton.py), with the
+        contacts the DEM has now and this step's implicit pressure matrix."""
+        grains, system, positions = self.grains, self.system, self._saved_positions
+        pairs, normal, shear = grains.contacts()
+        # a contact sliding at the Coulomb limit carries no more shear as it is pushed on
+        sliding = shear >= SLIDING * grains.friction * normal
+        masses = grains.masses()
+        flow_matrix = system.matrix(system.to_nodes(self.storage_coefficient(state) / dt), np.where(blocked, 0.0, g))
+        force = pressure_force_matrix(self.net, grains.radii, positions)
+        stiffness = skeleton_stiffness(positions, grains.radii, pairs, grains.k_n, np.where(sliding, 0.0, grains.k_s))
+        return SkeletonNewton(flow_matrix, system.to_nodes_matrix, force, self.geometry.volume_gradient(positions),
+                              stiffness, masses, 0.5 * masses * grains.radii**2, ~grains.fixed, dt,
+                              self.coupling.skeleton_inertia_factor)
 
     def _closed(self, blocked: np.ndarray, g: np.ndarray) -> np.ndarray:
         """Domains with no open pipe (no flux in or out at this solve)."""

@@ -59,12 +59,17 @@ class RadialCase:
 
 RADIAL_CASES = {
     "A1": RadialCase("A1", 5 * CP, 1.6, 1.0e-5, "infiltration"),
-    "A3": RadialCase("A3", 5 * CP, 32.3, 8.0e-7, "infiltration-dominated with fracturing"),
+    # A3's steps mostly converge within three evaluations of a few DEM cycles each, so building
+    # the skeleton's Newton step costs more than it saves (BENCHMARKS.md, decisions #55)
+    "A3": RadialCase("A3", 5 * CP, 32.3, 8.0e-7, "infiltration-dominated with fracturing",
+                     coupling_defaults=(("pv_skeleton_newton", False),)),
     # B1's P-V iteration converges faster with a higher cap, without reused secant pairs and
     # without the pocket step (its map changes from step to step; BENCHMARKS.md, decisions #52)
     "B1": RadialCase("B1", 176 * CP, 56.3, 1.0e-5, "infiltration-dominated with fracturing",
                      coupling_defaults=(("pv_max_iter", 24), ("pv_reuse_steps", 0), ("pv_pocket_newton", False))),
-    "B3": RadialCase("B3", 176 * CP, 1138.1, 8.0e-7, "fracturing-dominated"),
+    # with the skeleton's Newton step, B3's pocket step slows it down (decisions #55)
+    "B3": RadialCase("B3", 176 * CP, 1138.1, 8.0e-7, "fracturing-dominated",
+                     coupling_defaults=(("pv_pocket_newton", False),)),
 }
 
 

@@ -50,6 +50,7 @@ class DiscAssembly:
         O.dt = timestep_safety * utils.PWaveTimeStep()
         self.k_n = k_n
         self.k_s = ks_over_kn * k_n
+        self.friction = friction
         self._index = {b: k for k, b in enumerate(self.ids)}
 
     @property
@@ -165,15 +166,22 @@ class DiscAssembly:
         """Advance the DEM by ``cycles`` steps of :attr:`timestep`."""
         run_cycles(self._O, cycles)
 
-    def contact_forces(self) -> tuple[np.ndarray, np.ndarray]:
-        """All real disc-disc contacts: grain index pairs (k, 2), i < j, and normal forces (k,)."""
-        pairs, force = [], []
+    def contacts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """All real disc-disc contacts: grain index pairs (k, 2), i < j, and the sizes of their
+        normal and shear forces (k,) [N per m]."""
+        pairs, forces = [], []
         index = self._index
         for inter in self._O.interactions:
             if inter.isReal and inter.id1 in index and inter.id2 in index:
                 pairs.append((index[inter.id1], index[inter.id2]))
-                force.append(inter.phys.normalForce.norm())
-        return np.sort(np.array(pairs, int).reshape(-1, 2), axis=1), np.array(force, float)
+                forces.append((inter.phys.normalForce.norm(), inter.phys.shearForce.norm()))
+        forces = np.array(forces, float).reshape(-1, 2)
+        return np.sort(np.array(pairs, int).reshape(-1, 2), axis=1), forces[:, 0], forces[:, 1]
+
+    def contact_forces(self) -> tuple[np.ndarray, np.ndarray]:
+        """All real disc-disc contacts: grain index pairs (k, 2), i < j, and normal forces (k,)."""
+        pairs, normal, _ = self.contacts()
+        return pairs, normal
 
     def normal_forces(self, pairs: np.ndarray) -> np.ndarray:
         """Compressive normal contact force per grain pair (k, 2) [N per m]; 0 where detached."""

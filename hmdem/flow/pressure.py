@@ -77,6 +77,14 @@ class PressureSystem:
         columns = [np.bincount(self.node[m], values[:, k], self.n_unknowns) / count for k in range(values.shape[1])]
         return np.stack(columns, axis=1).reshape((self.n_unknowns,) + per_domain.shape[1:])
 
+    @property
+    def to_nodes_matrix(self) -> sp.csr_matrix:
+        """:meth:`to_nodes` as a sparse (n_unknowns, n_domains) 0/1 matrix; its transpose is
+        :meth:`domain_values`."""
+        m = self.domain_is_unknown
+        shape = (self.n_unknowns, len(self.node))
+        return sp.csr_matrix((np.ones(m.sum()), (self.node[m], np.flatnonzero(m))), shape=shape)
+
     def to_nodes(self, per_domain: np.ndarray) -> np.ndarray:
         """Sum a per-domain quantity onto the unknowns (Dirichlet domains dropped)."""
         m = self.domain_is_unknown
