@@ -78,10 +78,9 @@ class SkeletonNewton:
         n_grains = len(masses)
         dof_mass = np.stack([masses, masses, inertias], axis=1).ravel()
         dofs = (3 * np.flatnonzero(free)[:, None] + np.arange(3)).ravel()
-        translation = np.zeros((n_grains, 3), bool)
-        translation[:, :2] = True
-        # the force and volume maps act on x and y; their rotation rows are zero
-        xy_to_dofs = sp.csr_matrix((np.ones(2 * n_grains), (np.flatnonzero(translation.ravel()), np.arange(2 * n_grains))),
+        # the force and volume maps act on x and y only: column (x_k, y_k) is dof (3k, 3k + 1)
+        xy_dofs = (3 * np.arange(n_grains)[:, None] + np.arange(2)).ravel()
+        xy_to_dofs = sp.csr_matrix((np.ones(2 * n_grains), (xy_dofs, np.arange(2 * n_grains))),
                                    shape=(3 * n_grains, 2 * n_grains))[dofs]
         stiff = stiffness[dofs][:, dofs] + sp.diags(dof_mass[dofs] / (inertia_factor * dt * dt))
         coupling_v = to_nodes @ volume_gradient @ xy_to_dofs.T / dt
