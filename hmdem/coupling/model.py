@@ -40,7 +40,7 @@ from typing import Protocol
 
 import numpy as np
 
-from ..flow.grain_forces import grain_pressure_forces, pressure_force_matrix
+from ..flow.grain_forces import pressure_force_matrix
 from ..flow.simulation import FlowModel, FlowSetup, SimulationDiverged
 from ..network.network import Network
 from .apertures import ApertureLaw
@@ -192,8 +192,7 @@ class CoupledFlowModel(FlowModel):
     def move_grains(self, pressure: np.ndarray, dt: float) -> np.ndarray:
         """Apply the Eq. 8 forces of ``pressure`` and advance the DEM by dt; new positions."""
         grains = self.grains
-        forces = grain_pressure_forces(self.net, grains.radii, pressure, positions=self.positions)
-        grains.set_external_forces(forces)
+        grains.set_external_forces((self._force_matrix(self.positions) @ pressure).reshape(-1, 2))
         cycles = self.dem_cycles(dt)
         grains.timestep = dt / cycles
         start = time.perf_counter()
@@ -202,6 +201,14 @@ class CoupledFlowModel(FlowModel):
         self.coupling_record.dem_cycles += cycles
         self.positions = grains.positions()
         return self.positions
+
+    def _force_matrix(self, positions: np.ndarray):
+        """Eq. 8 at ``positions`` (pressure_force_matrix), kept while the same positions array is
+        passed: every evaluation of a rewound step starts from t^n's."""
+        if getattr(self, "_force_positions", None) is not positions:
+            self._force_positions = positions
+            self._force = pressure_force_matrix(self.net, self.grains.radii, positions)
+        return self._force
 
     def _rewind(self, save: bool = False) -> None:
         """Keep (save=True) or return to the DEM state, and the grain positions, of t^n."""
@@ -374,7 +381,7 @@ class CoupledFlowModel(FlowModel):
         sliding = shear >= SLIDING * grains.friction * normal
         masses = grains.masses()
         flow_matrix = system.matrix(system.to_nodes(self.storage_coefficient(state) / dt), np.where(blocked, 0.0, g))
-        force = pressure_force_matrix(self.net, grains.radii, positions)
+        force = self._force_matrix(positions)
         stiffness = skeleton_stiffness(positions, grains.radii, pairs, grains.k_n, np.where(sliding, 0.0, grains.k_s))
         return SkeletonNewton(flow_matrix, system.to_nodes_matrix, force, self.geometry.volume_gradient(positions),
                               stiffness, masses, 0.5 * masses * grains.radii**2, ~grains.fixed, dt,
