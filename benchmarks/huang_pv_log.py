@@ -81,7 +81,8 @@ def resume(checkpoint: Path):
 
 def log(checkpoint: Path, steps: int, out_csv: Path, pocket_newton: bool | None = None,
         reuse_steps: int | None = None, max_iter: int | None = None, rtol: float | None = None,
-        dt: float | None = None, span: float | None = None, skeleton_newton: bool | None = None) -> None:
+        dt: float | None = None, span: float | None = None, skeleton_newton: bool | None = None,
+        max_columns: int | None = None) -> None:
     model, state = resume(checkpoint)
     if skeleton_newton is not None:
         model.coupling.pv_skeleton_newton = skeleton_newton
@@ -94,9 +95,11 @@ def log(checkpoint: Path, steps: int, out_csv: Path, pocket_newton: bool | None 
         model.coupling.pv_pocket_newton = pocket_newton
     if max_iter is not None:
         model.coupling.pv_max_iter = max_iter
+    if max_columns is not None:
+        model.coupling.pv_max_columns = model.quasi_newton.max_columns = max_columns
     if reuse_steps is not None:  # a fresh IQN (the checkpoint's keeps the pairs of its last steps)
         model.coupling.pv_reuse_steps = reuse_steps
-        model.quasi_newton = InterfaceQuasiNewton(reuse_steps=reuse_steps)
+        model.quasi_newton = InterfaceQuasiNewton(reuse_steps=reuse_steps, max_columns=model.coupling.pv_max_columns)
     model.pv_log = []
     pockets = np.zeros(model.net.n_domains, bool)
     pockets[trapped_pockets(state.invaded, state.saturation, model.pipe_a, model.pipe_b)] = True
@@ -183,6 +186,8 @@ def main() -> None:
                    help="IQN reuses the secant pairs of this many earlier steps; given, IQN starts afresh "
                         "without the checkpoint's pairs (default: as checkpointed, pairs kept)")
     g.add_argument("--pv-max-iter", type=positive_int, help="P-V iteration cap per attempt (default: as checkpointed)")
+    g.add_argument("--pv-max-columns", type=positive_int,
+                   help="secant pairs the IQN update fits at most (default: as checkpointed)")
     g.add_argument("--pv-tol", type=float, help="relative P-V tolerance (default: as checkpointed)")
     g.add_argument("--dt", type=float, help="nominal flow step, as radial --dt (default: as checkpointed)")
     g.add_argument("--skeleton-newton", action=argparse.BooleanOptionalAction, default=None,
@@ -200,7 +205,7 @@ def main() -> None:
         save(args.case, args.until, args.checkpoint)
     elif args.command == "log":
         log(args.checkpoint, args.steps, args.csv, args.pocket_newton, args.pv_reuse_steps, args.pv_max_iter,
-            args.pv_tol, args.dt, args.span, args.skeleton_newton)
+            args.pv_tol, args.dt, args.span, args.skeleton_newton, args.pv_max_columns)
     else:
         probe(args.checkpoint, args.domains, args.deltas, args.dt, args.dem_cycles)
 

@@ -71,6 +71,9 @@ def build_parser() -> argparse.ArgumentParser:
     rad.add_argument("--pv-reuse-steps", type=non_negative_int,
                      help="earlier flow steps (same dt) whose secant pairs the quasi-Newton update reuses "
                           "(default 5; 0 for B1, whose map changes from step to step: BENCHMARKS.md)")
+    rad.add_argument("--pv-max-columns", type=positive_int,
+                     help="secant pairs the quasi-Newton update fits at most, newest first (default 40; "
+                          "4 for B1, where fits to older pairs stall the iteration: decisions #56)")
     rad.add_argument("--pocket-newton", action=argparse.BooleanOptionalAction, default=None,
                      help="a scalar Newton step on each trapped pocket after the quasi-Newton update "
                           "(hmdem/coupling/pockets.py; default on, off for B1 and B3); --no-pocket-newton leaves "
@@ -225,6 +228,8 @@ def run_radial(args) -> int:
         sc.coupling.pv_pocket_newton = args.pocket_newton
     if args.pv_reuse_steps is not None:
         sc.coupling.pv_reuse_steps = args.pv_reuse_steps
+    if args.pv_max_columns is not None:
+        sc.coupling.pv_max_columns = args.pv_max_columns
     if args.skeleton_newton is not None:
         sc.coupling.pv_skeleton_newton = args.skeleton_newton
     if args.damping is not None:

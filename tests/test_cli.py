@@ -30,6 +30,7 @@ CMD = [sys.executable, "-m", "hmdem.hele_shaw"]
     (["radial", "--dem-cycles", "0"], "--dem-cycles"),
     (["radial", "--threads", "0"], "--threads"),
     (["radial", "--pv-reuse-steps", "-1"], "--pv-reuse-steps"),
+    (["radial", "--pv-max-columns", "0"], "--pv-max-columns"),
     (["radial", "--damping", "1"], "--damping"),
 ])
 def test_bad_input_one_line_exit_2_nothing_written(tmp_path, args, name):
@@ -230,15 +231,17 @@ def test_pocket_newton_reuse_skeleton_and_damping_flags_reach_the_run(tmp_path):
 
 @pytest.mark.yade
 def test_b1_runs_with_its_own_pv_settings_unless_the_flags_say_otherwise(tmp_path):
-    # decisions.md #52: B1's defaults are a cap of 24, no reuse, no pocket step; flags still win
+    # decisions.md #52, #56: B1's defaults are a cap of 24, no reuse, no pocket step, 4 secant
+    # pairs; flags still win
     own, flagged = tmp_path / "own", tmp_path / "flagged"
     assert main(["radial", "--case", "B1", "--max-steps", "1", "--out", str(own), "--quiet"]) == 0
     assert main(["radial", "--case", "B1", "--max-steps", "1", "--pocket-newton", "--pv-reuse-steps", "5",
-                 "--pv-max-iter", "12", "--out", str(flagged), "--quiet"]) == 0
+                 "--pv-max-iter", "12", "--pv-max-columns", "40", "--out", str(flagged), "--quiet"]) == 0
+    keys = ("pv_max_iter", "pv_reuse_steps", "pv_pocket_newton", "pv_max_columns")
     coupling = tomllib.loads((own / "config.toml").read_text())["coupling"]
-    assert (coupling["pv_max_iter"], coupling["pv_reuse_steps"], coupling["pv_pocket_newton"]) == (24, 0, False)
+    assert tuple(coupling[k] for k in keys) == (24, 0, False, 4)
     coupling = tomllib.loads((flagged / "config.toml").read_text())["coupling"]
-    assert (coupling["pv_max_iter"], coupling["pv_reuse_steps"], coupling["pv_pocket_newton"]) == (12, 5, True)
+    assert tuple(coupling[k] for k in keys) == (12, 5, True, 40)
 
 
 @pytest.mark.yade

@@ -164,6 +164,31 @@ def test_quasi_newton_converges_where_substitution_diverges():
     np.testing.assert_allclose(x, exact, atol=1e-9)
 
 
+def test_quasi_newton_fits_only_its_newest_secant_pairs():
+    """max_columns = k (--pv-max-columns, decisions #56): each update is the IQN-ILS least-squares
+    update x = h + W c, V c ~ -r, over the k newest secant pairs alone, written out here."""
+    from hmdem.coupling.quasi_newton import InterfaceQuasiNewton
+
+    rng = np.random.default_rng(3)
+    n, k = 12, 3
+    m = 0.3 * rng.normal(size=(n, n))
+    b = rng.normal(size=n)
+    qn = InterfaceQuasiNewton(max_columns=k)
+    qn.new_step(1.0)
+    x, history = rng.normal(size=n), []
+    for _ in range(8):
+        h = m @ x + b
+        history.append((h - x, h))
+        pairs = list(zip(history[:-1], history[1:]))[-k:]
+        update = qn.update(x, h)
+        if pairs:
+            v = np.column_stack([new[0] - old[0] for old, new in pairs])
+            w = np.column_stack([new[1] - old[1] for old, new in pairs])
+            c = np.linalg.lstsq(v, -(h - x), rcond=None)[0]
+            np.testing.assert_allclose(update, h + w @ c, rtol=1e-9, atol=1e-12)
+        x = update
+
+
 def test_quasi_newton_reuses_the_secants_of_earlier_steps_of_the_same_dt():
     """IQN-ILS(q): a second step with the same linear map starts from the first step's model and
     needs fewer evaluations; a step at another dt starts afresh."""
@@ -266,8 +291,9 @@ def test_radial_injection_rate_from_the_papers_inlet_perimeter():
 
 
 def test_cases_set_their_own_pv_iteration_and_a1_keeps_the_defaults():
-    # decisions.md #52, #55: B1 runs with a cap of 24, no reused secant pairs and no pocket step,
-    # B3 without the pocket step, A3 without the skeleton's Newton step; A1 keeps CouplingSetup's
+    # decisions.md #52, #55, #56: B1 runs with a cap of 24, no reused secant pairs, no pocket step
+    # and 4 secant pairs, B3 without the pocket step, A3 without the skeleton's Newton step; A1
+    # keeps CouplingSetup's
     from dataclasses import fields
 
     from hmdem.coupling.model import CouplingSetup
@@ -275,11 +301,11 @@ def test_cases_set_their_own_pv_iteration_and_a1_keeps_the_defaults():
 
     def settings(case):
         c = build_radial_scenario(RADIAL_CASES[case]).coupling
-        return c.pv_max_iter, c.pv_reuse_steps, c.pv_pocket_newton, c.pv_skeleton_newton
+        return c.pv_max_iter, c.pv_reuse_steps, c.pv_pocket_newton, c.pv_skeleton_newton, c.pv_max_columns
 
-    assert settings("B1") == (24, 0, False, True)
-    assert settings("B3") == (12, 5, False, True)
-    assert settings("A3") == (12, 5, True, False)
+    assert settings("B1") == (24, 0, False, True, 4)
+    assert settings("B3") == (12, 5, False, True, 40)
+    assert settings("A3") == (12, 5, True, False, 40)
     default = CouplingSetup()
     coupling = build_radial_scenario(RADIAL_CASES["A1"]).coupling
     assert all(getattr(coupling, f.name) == getattr(default, f.name) for f in fields(CouplingSetup))

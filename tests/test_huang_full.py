@@ -1,9 +1,10 @@
-"""The Huang cases at paper size (issue 3; digest seed004 §13.3 H1, H2, H4, H6, H10): `make validate`.
+"""The Huang cases at paper size (issue 3; digest seed004 §13.3 H1-H4, H6, H10): `make validate`.
 
 Each case runs once per session, through the same command a user types
 (``python -m hmdem.hele_shaw radial --case X``), to breakthrough; the assertions read the run
 directory. Wall times on 2-core machines are in BENCHMARKS.md: B3 7-33 min (7 with the
-skeleton's Newton step, decisions #55), B3 one-way under a minute, A3 5-22 min, A1 19-65 min
+skeleton's Newton step, decisions #55), B3 one-way under a minute, A3 5-22 min, A1 19-65 min,
+B1 about an hour (decisions #55, #56)
 (both were slowed by trapped air pockets until those got their own Newton step, decisions #45). Tolerances are the digest's
 (§13.3); where the model misses a claim the test is a strict expected failure that names the
 measured figure, so that a fix shows up.
@@ -103,6 +104,18 @@ def test_a3_early_peak_opens_contacts_then_drops(huang):
     assert a3["first_opening_time_s"] <= a3["early_peak_time_s"] < a3["breakthrough_time_s"]
     ratio = a3["early_peak_injection_pressure_pa"] / a1["peak_injection_pressure_pa"]
     assert 4.0 <= ratio <= 10.0  # H2: 6.6 in the paper
+
+
+def test_b1_infiltration_dominated_with_fractures_inside_the_infiltrated_zone(huang):
+    # H3: B1 is "infiltration-dominated", its fractures stay inside the infiltrated zone and the
+    # front stays circular (qualitative in the digest). Read as for A1 and A3: the regime, a
+    # mass-radius D_f >= 1.90 (H1's bound for a circular front) and most opened contacts with
+    # both pores filled at breakthrough (measured 2026-11-25: 399 of 454, D_f 1.998, in 49 min)
+    s = huang("B1")[0]
+    assert s["status"] == "breakthrough"
+    assert s["regime"] == "infiltration-dominated with fracturing"
+    assert s["fractal_dimension"] >= 1.90
+    assert s["n_opened_in_invaded_zone"] > s["n_opened_contacts"] / 2 > 0
 
 
 def test_b3_opens_contacts_beyond_a3(huang):

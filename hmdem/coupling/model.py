@@ -109,6 +109,10 @@ class CouplingSetup:
     # They save ~10 % over the first steps of A3 and B3 and hurt where the map changes from
     # one step to the next (B1's late stretch: decisions #47, BENCHMARKS.md)
     pv_reuse_steps: int = 5
+    # secant pairs the IQN update fits at most, newest first (reused ones included). Where the
+    # map is rough (B1), a fit to many pairs from iterates far apart can cancel the Newton step
+    # and stall the iteration a few tolerances from convergence (decisions #56)
+    pv_max_columns: int = 40
     # YADE local damping of the grains during the run (the sample always settles at 0.7). The
     # seed does not state it; 0.7 is PFC's default (digest §2.4, decisions #49)
     dem_damping: float = 0.7
@@ -151,7 +155,7 @@ class CoupledFlowModel(FlowModel):
         self.grains, self.coupling = grains, coupling
         self.geometry = DomainGeometry(net)
         self.coupling_record = CouplingRecord()
-        self.quasi_newton = InterfaceQuasiNewton(reuse_steps=coupling.pv_reuse_steps)
+        self.quasi_newton = InterfaceQuasiNewton(reuse_steps=coupling.pv_reuse_steps, max_columns=coupling.pv_max_columns)
         self.pocket_newton = PocketNewton(net.n_domains, self.pipe_a, self.pipe_b)
         self.coupling_dt = setup.dt  # flow-step cap of the coupling (halved when P-V fails)
         self._easy_steps = 0  # consecutive easy steps since the cap was last changed

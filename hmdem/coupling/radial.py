@@ -63,10 +63,12 @@ RADIAL_CASES = {
     # the skeleton's Newton step costs more than it saves (BENCHMARKS.md, decisions #55)
     "A3": RadialCase("A3", 5 * CP, 32.3, 8.0e-7, "infiltration-dominated with fracturing",
                      coupling_defaults=(("pv_skeleton_newton", False),)),
-    # B1's P-V iteration converges faster with a higher cap, without reused secant pairs and
-    # without the pocket step (its map changes from step to step; BENCHMARKS.md, decisions #52)
+    # B1's P-V iteration converges faster with a higher cap, without reused secant pairs, without
+    # the pocket step (its map changes from step to step; BENCHMARKS.md, decisions #52) and with
+    # the quasi-Newton fit kept to the 4 newest secant pairs (decisions #56)
     "B1": RadialCase("B1", 176 * CP, 56.3, 1.0e-5, "infiltration-dominated with fracturing",
-                     coupling_defaults=(("pv_max_iter", 24), ("pv_reuse_steps", 0), ("pv_pocket_newton", False))),
+                     coupling_defaults=(("pv_max_iter", 24), ("pv_reuse_steps", 0), ("pv_pocket_newton", False),
+                                        ("pv_max_columns", 4))),
     # with the skeleton's Newton step, B3's pocket step slows it down (decisions #55)
     "B3": RadialCase("B3", 176 * CP, 1138.1, 8.0e-7, "fracturing-dominated",
                      coupling_defaults=(("pv_pocket_newton", False),)),
