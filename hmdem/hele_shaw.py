@@ -198,6 +198,20 @@ def finish(rec, summary: dict) -> int:
     return 130 if rec.status == "interrupted" else 0
 
 
+# radial flags that override a CouplingSetup field (case defaults included) when given
+COUPLING_FLAGS = (
+    ("dem_cycles", "dem_cycles_per_step", int),
+    ("pv_tol", "pv_rtol", float),
+    ("pv_max_iter", "pv_max_iter", int),
+    ("pv_grow_after", "pv_easy_steps_to_grow", int),
+    ("pocket_newton", "pv_pocket_newton", bool),
+    ("pv_reuse_steps", "pv_reuse_steps", int),
+    ("pv_max_columns", "pv_max_columns", int),
+    ("skeleton_newton", "pv_skeleton_newton", bool),
+    ("damping", "dem_damping", float),
+)
+
+
 def run_radial(args) -> int:
     from dataclasses import replace as replace_case
 
@@ -215,25 +229,10 @@ def run_radial(args) -> int:
     packing = DiscPacking.load(args.packing) if args.packing else None
     sc = build_radial_scenario(case, packing, ca_star=args.ca_star, viscosity_ratio=args.viscosity_ratio,
                                one_way=args.one_way, sigma=args.sigma)
-    if args.dem_cycles is not None:
-        sc.coupling.dem_cycles_per_step = int(args.dem_cycles)
-    if args.pv_tol is not None:
-        sc.coupling.pv_rtol = args.pv_tol
-    if args.pv_max_iter is not None:
-        sc.coupling.pv_max_iter = int(args.pv_max_iter)
-    if args.pv_grow_after is not None:
-        sc.coupling.pv_easy_steps_to_grow = int(args.pv_grow_after)
+    for flag, field, convert in COUPLING_FLAGS:
+        if getattr(args, flag) is not None:
+            setattr(sc.coupling, field, convert(getattr(args, flag)))
     sc.coupling.pv_rewind = not args.pv_continue
-    if args.pocket_newton is not None:
-        sc.coupling.pv_pocket_newton = args.pocket_newton
-    if args.pv_reuse_steps is not None:
-        sc.coupling.pv_reuse_steps = args.pv_reuse_steps
-    if args.pv_max_columns is not None:
-        sc.coupling.pv_max_columns = args.pv_max_columns
-    if args.skeleton_newton is not None:
-        sc.coupling.pv_skeleton_newton = args.skeleton_newton
-    if args.damping is not None:
-        sc.coupling.dem_damping = args.damping
     if args.t_max is not None:
         sc.setup.t_max = args.t_max
     if args.max_steps is not None:

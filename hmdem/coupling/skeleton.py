@@ -94,14 +94,14 @@ class SkeletonNewton:
         self._lu = splu((sp.diags(scale) @ system @ sp.diags(scale)).tocsc(), permc_spec="MMD_AT_PLUS_A",
                         diag_pivot_thresh=0.0, options={"SymmetricMode": True})
         self._flow_matrix, self._to_nodes = flow_matrix, to_nodes
+        self._domains_per_unknown = np.asarray(to_nodes.sum(axis=1)).ravel()
         self.n_unknowns = flow_matrix.shape[0]
 
     def step(self, residual: np.ndarray) -> np.ndarray:
         """dp per domain solving (I - J) dp = r for the residual r = p_calc - p_trial per domain
         (Dirichlet domains get 0)."""
         to_nodes = self._to_nodes
-        count = np.asarray(to_nodes.sum(axis=1)).ravel()
-        r_node = (to_nodes @ residual) / count  # domains sharing an unknown agree
+        r_node = (to_nodes @ residual) / self._domains_per_unknown  # domains sharing an unknown agree
         rhs = np.zeros(len(self._scale))
         rhs[:self.n_unknowns] = self._flow_matrix @ r_node
         solution = self._scale * self._lu.solve(self._scale * rhs)
