@@ -332,6 +332,18 @@ def test_poiseuille_viscosity_matches_eq6(poiseuille):
     assert abs(s["viscosity_error"]) <= 0.05
 
 
+def test_poiseuille_viscosity_approaches_eq6_at_low_density(poiseuille, tmp_path):
+    # decisions #43: the excess over Eq. 6 (the Boltzmann viscosity) grows with the density, as
+    # the correlations Eq. 6 neglects do. At rho = 0.35 C7b's 5 % holds (measured +2.1 %), and
+    # the excess sits more than 2 points (~1.5x the flow-rate error of one drive) under rho = 1's
+    _, dense = poiseuille
+    out = tmp_path / "dilute"
+    assert lga_main(["poiseuille", "--density", "0.35", "--out", str(out), "--quiet"]) == 0
+    dilute = json.loads((out / "summary.json").read_text())
+    assert abs(dilute["viscosity_error"]) <= 0.05
+    assert dilute["viscosity_error"] <= dense["viscosity_error"] - 0.02
+
+
 @pytest.fixture(scope="module")
 def half_channel(tmp_path_factory):
     out = tmp_path_factory.mktemp("lga") / "half"
