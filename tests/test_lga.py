@@ -325,7 +325,8 @@ def test_poiseuille_forces_balance_and_mach(poiseuille):
 @pytest.mark.xfail(strict=True, reason="known model discrepancy, issue 6: the automaton's Poiseuille viscosity "
                    "at 600 x 100 rows is 0.328 (+6.8 % over Eq. 6's 0.3075; the paper measured 0.30); it grows "
                    "with the channel width (0.315, 0.323, 0.328, 0.335 at 25, 50, 100, 200 rows), the scale dependence "
-                   "expected of a 2-D lattice gas beyond the Boltzmann approximation (decisions #43)")
+                   "expected of a 2-D lattice gas beyond the Boltzmann approximation; a wall-free shear wave reads +6 to +13 % "
+                   "too (decisions #43)")
 def test_poiseuille_viscosity_matches_eq6(poiseuille):
     # C7b: nu from the Q-dP slope within 5 % of Eq. 6
     _, s = poiseuille
@@ -343,6 +344,18 @@ def test_poiseuille_viscosity_approaches_eq6_at_low_density(poiseuille, tmp_path
     assert abs(dilute["viscosity_error"]) <= 0.05
     assert dilute["viscosity_error"] <= dense["viscosity_error"] - 0.02
 
+
+
+def test_bulk_shear_wave_viscosity_is_above_eq6():
+    # decisions #43: without walls or forcing (a periodic lattice, a decaying sin(ky) shear wave
+    # 128 rows long) the automaton's viscosity at the paper's rho = 1 is 0.341, +11 % over Eq. 6,
+    # +-1.6 % (standard error over the 8 lattices); so C7b's miss is the automaton's, not the
+    # channel's. Bounds: 3 standard errors under the measurement, and 20 %
+    from sph_bridge.lga.shear_wave import shear_wave_viscosity
+
+    wave = shear_wave_viscosity(rows=128, length=16384, density=1.0, seeds=8)
+    assert wave.viscosity_eq6 == pytest.approx(0.307279, abs=1e-6)
+    assert 0.06 <= wave.excess <= 0.20
 
 @pytest.fixture(scope="module")
 def half_channel(tmp_path_factory):

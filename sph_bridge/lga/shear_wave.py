@@ -1,0 +1,91 @@
+"""Bulk viscosity of the automaton from a decaying shear wave (decisions #43).
+
+A fully periodic lattice (no walls, no forcing) starts with the x-velocity u_x(y) = U sin(k y),
+k = 2 pi / (rows sqrt(3)/2): each moving channel is occupied with probability d + e c_kx sin(k y),
+d = density / 7. Momentum diffuses across rows, d j_x / dt = nu d^2 j_x / dy^2, so the mode's
+amplitude decays as exp(-nu k^2 t) once the kinetic (non-hydrodynamic) modes have died out, a
+few collision times. The fitted nu is the automaton's own, free of walls, slip and forcing, to
+set against Eq. 6 (the Boltzmann value, ``rules.viscosity``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import automaton
+from .lattice import ROW, Geometry, Lattice, node_positions
+from .rules import viscosity
+
+CX = np.array([0.0, 1.0, 0.5, -0.5, -1.0, -0.5, 0.5])  # c_kx of channels 0..6
+
+
+@dataclass(frozen=True)
+class ShearWave:
+    rows: int
+    length: int
+    density: float  # particles per node
+    wavenumber: float
+    amplitude: np.ndarray  # the sin(k y) mode of j_x per step, averaged over the seeds [half units per row]
+    viscosity_fit: float
+    viscosity_eq6: float
+    fit_steps: tuple[int, int]  # the window of the log-linear fit
+
+    @property
+    def excess(self) -> float:
+        return self.viscosity_fit / self.viscosity_eq6 - 1.0
+
+
+def mode_amplitude(lattice: Lattice, sines: np.ndarray, everything: np.ndarray) -> float:
+    """Projection of the rows' x-momentum (half units) on sin(k y): 2/rows sum_j P_j sin(k y_j)."""
+    counts = np.zeros(lattice.ny, dtype=np.int64)
+    momentum = np.zeros(lattice.ny, dtype=np.int64)
+    automaton.row_sums(lattice.state, everything, counts, momentum)
+    return 2.0 * float(momentum @ sines) / lattice.ny
+
+
+def decay(rows: int, length: int, density: float, velocity: float, steps: int, seed: int) -> tuple[np.ndarray, float]:
+    """The mode's amplitude at steps 0..steps of one lattice, and k."""
+    if rows % 2:
+        raise ValueError(f"rows must be even (y is periodic), got {rows}")
+    shape = (rows, length)
+    lattice = Lattice(Geometry(np.zeros(shape, bool), np.zeros(shape, bool), periodic_y=True), density, seed)
+    k = 2.0 * math.pi / (rows * ROW)
+    _, y = node_positions(rows, length)
+    wave = np.sin(k * y)
+    d = density / 7.0
+    # occupation d + e c_kx sin(ky) carries j_x = 3 e sin(ky) per node (sum of c_kx^2 over the six)
+    # and u_x = j_x / density; e is set from the requested peak velocity
+    e = velocity * density / 3.0
+    if not 0.0 < d - e and d + e < 1.0:
+        raise ValueError(f"velocity {velocity} too large for density {density}")
+    rng = np.random.default_rng(seed + 7919)
+    occupied = np.stack([rng.random(shape) < d + e * CX[c] * wave for c in range(automaton.CHANNELS)])
+    lattice.state = automaton.pack(occupied)
+    everything = automaton.pack(np.ones(shape, bool))
+    sines = np.sin(k * np.arange(rows) * ROW)
+    amplitude = np.empty(steps + 1)
+    amplitude[0] = mode_amplitude(lattice, sines, everything)
+    for t in range(1, steps + 1):
+        lattice.run(1, 0.0)
+        amplitude[t] = mode_amplitude(lattice, sines, everything)
+    return amplitude, k
+
+
+def shear_wave_viscosity(rows: int = 64, length: int = 4096, density: float = 1.0, velocity: float = 0.05,
+                         seeds: int = 4, start: int = 20, stop_fraction: float = 0.25) -> ShearWave:
+    """nu from the decay of the mean amplitude over ``seeds`` lattices: a least-squares line
+    through log A(t) from step ``start`` until A first falls below ``stop_fraction`` of A(start)
+    (later the thermal noise of the rows' momentum, ~sqrt(length), takes over)."""
+    nu_guess = viscosity(density)
+    k = 2.0 * math.pi / (rows * ROW)
+    steps = start + int(math.ceil(math.log(1.0 / stop_fraction) / (nu_guess * k * k) * 1.5))
+    runs = [decay(rows, length, density, velocity, steps, seed)[0] for seed in range(seeds)]
+    amplitude = np.mean(runs, axis=0)
+    below = np.flatnonzero(amplitude[start:] < stop_fraction * amplitude[start])
+    stop = start + (int(below[0]) if len(below) else len(amplitude) - start)
+    t = np.arange(start, stop)
+    slope = np.polyfit(t, np.log(amplitude[start:stop]), 1)[0]
+    return ShearWave(rows, length, density, k, amplitude, -slope / (k * k), nu_guess, (start, stop))
