@@ -59,8 +59,8 @@ def decay(rows: int, length: int, density: float, velocity: float, steps: int, s
     # occupation d + e c_kx sin(ky) carries j_x = 3 e sin(ky) per node (sum of c_kx^2 over the six)
     # and u_x = j_x / density; e is set from the requested peak velocity
     e = velocity * density / 3.0
-    if not 0.0 < d - e and d + e < 1.0:
-        raise ValueError(f"velocity {velocity} too large for density {density}")
+    if not (0.0 < d - e and d + e < 1.0):
+        raise ValueError(f"velocity {velocity} needs channel occupations outside (0, 1) at density {density}")
     rng = np.random.default_rng(seed + 7919)
     occupied = np.stack([rng.random(shape) < d + e * CX[c] * wave for c in range(automaton.CHANNELS)])
     lattice.state = automaton.pack(occupied)
