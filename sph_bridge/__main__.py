@@ -3,7 +3,7 @@ with run directories; ``python -m sph_bridge lga ...``: the FHP-II lattice-gas s
 (:mod:`sph_bridge.lga.cli`).
 
     python -m sph_bridge droplet     [--dx M] [--theta DEG] [--volume M3] [--gravity G] [--ridge] [--out DIR]
-    python -m sph_bridge calibrate   [--dx M] [--theta DEG] [--surface-tension N/M] [--out DIR]
+    python -m sph_bridge calibrate   [--dx M] [--theta DEG] [--surface-tension N/M] [--ridge-sizes N ...] [--out DIR]
     python -m sph_bridge hydrostatic [--dx M] [--layers N] [--gravity G] [--out DIR]
     python -m sph_bridge poiseuille  [--dx M] [--layers N] [--gravity G] [--viscosity MU] [--out DIR]
 
@@ -34,6 +34,7 @@ from hmdem.cli import (InputError, OneLineParser, dispatch, int_at_least, new_ru
 from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_toml
 
 from . import calibrations, cases, droplet
+from .calibrate import DROP_RADIUS_CELLS, MIN_RIDGE_CELLS
 from .interrupts import exit_status, interrupted
 from .output import particle_state, write_collection, write_particles
 
@@ -81,6 +82,9 @@ def build_parser() -> OneLineParser:
     p.add_argument("--surface-tension", type=positive_number, default=droplet.SURFACE_TENSION,
                    help=f"target surface tension [N/m] (default {droplet.SURFACE_TENSION})")
     p.add_argument("--c0", type=positive_number, help="speed of sound [m/s] (default: seed 000 Table 1)")
+    p.add_argument("--ridge-sizes", type=int_at_least(MIN_RIDGE_CELLS), nargs="+", default=[DROP_RADIUS_CELLS],
+                   metavar="N", help="starting radii [dx] of the zero-gravity ridges whose mean angle is "
+                   f"calibrated (each >= {MIN_RIDGE_CELLS}; default {DROP_RADIUS_CELLS})")
     for name, text in (("hydrostatic", "water at rest between two walls under gravity: dP/dz = rho g"),
                        ("poiseuille", "body-force flow between two walls: the parabolic profile")):
         p = sub.add_parser(name, help=text, description=text)
@@ -359,7 +363,8 @@ def run_calibrate(args) -> int:
 
     status, error = "finished", ""
     try:
-        calibrate(args.dx, args.theta, args.surface_tension, report=report, cal=cal)
+        calibrate(args.dx, args.theta, args.surface_tension, report=report, cal=cal,
+                  ridge_sizes=tuple(args.ridge_sizes))
     except (KeyboardInterrupt, SystemError) as exc:
         if not interrupted(exc):
             raise
@@ -370,13 +375,14 @@ def run_calibrate(args) -> int:
                "rho0_fluid": cal.rho0_fluid, "s_ff_n": cal.s_ff, "s_sf_n": cal.s_sf,
                "surface_tension_n_per_m": cal.surface_tension, "target_surface_tension_n_per_m": args.surface_tension,
                "bulk_density_kg_per_m3": cal.bulk_density, "contact_angle_deg": cal.contact_angle_deg,
-               "target_contact_angle_deg": args.theta, "trials": len(cal.trials),
+               "target_contact_angle_deg": args.theta, "ridge_sizes_dx": list(args.ridge_sizes),
+               "trials": len(cal.trials),
                "steps": sum(t.steps for t in cal.trials), "wall_time_s": time.perf_counter() - start}
     if error:
         summary["error"] = error
     config = {"run": {"command": f"{PROG} " + " ".join(args.argv), "case": "calibrate"},
               "targets": {"dx_m": args.dx, "theta_deg": args.theta, "surface_tension_n_per_m": args.surface_tension,
-                          "c0_m_per_s": cal.c0}}
+                          "c0_m_per_s": cal.c0, "ridge_sizes_dx": list(args.ridge_sizes)}}
     with atomic_run_directory(out) as tmp:
         write_toml(tmp / "config.toml", config)
         write_json(tmp / "summary.json", summary)

@@ -8,7 +8,9 @@ are resolution-dependent constants, and Table 1's values are a starting guess, n
    bulk properties of water" with rho_f,0 = 930-950 in Table 1 (digest §2.11, decisions #36).
 2. s_sf for a target static contact angle: a ridge (a 2-D drop, straight contact lines) at zero
    gravity (a circular cap at any size) spreads from a half cylinder on a 3-layer wall, and the
-   fitted cap's angle is read (:mod:`sph_bridge.droplet`). The first trial is Young's law for pairwise-additive forces,
+   fitted cap's angle is read (:mod:`sph_bridge.droplet`); with several ridge sizes, the mean of
+   their angles (a ridge's angle scatters with its size by a few degrees, decisions #39). The first
+   trial is Young's law for pairwise-additive forces,
    cos theta = 2 s_sf / s_ff - 1; the next ones follow the secant through the last two trials
    in cos theta, which is close to linear in s_sf.
 """
@@ -31,6 +33,7 @@ DENSITY_TOLERANCE = 0.005  # relative
 TENSION_FIRST_GUESS = 2e-3  # s_ff / dx [N/m]: sigma = 0.074 N/m at dx = 5e-4 m, c0 = 1.5 m/s
 SLAB_PERIODS = 6  # periods 2 L / c0 of the free slab's fundamental acoustic mode: sigma settles to 0.1 % by then
 DROP_RADIUS_CELLS = 10  # starting half-cylinder radius in dx
+MIN_RIDGE_CELLS = 6  # smaller ridges are too few particles tall for a cap to be read
 
 # Table 1 of seed 000: speed of sound per resolution (dx [m], c0 [m/s])
 TABLE1_SOUND_SPEED = ((5e-5, 18.0), (1e-4, 4.0), (2e-4, 2.5), (3e-4, 2.0), (4e-4, 1.75), (5e-4, 1.5))
@@ -81,23 +84,36 @@ def slab_tension(params: SphParameters, progress=None) -> tuple[float, float, in
     return tension.surface_tension(sim), tension.bulk_density(sim), sim.record.steps
 
 
-def zero_gravity_drop(params: SphParameters, surface_tension: float, progress=None):
+def zero_gravity_drop(params: SphParameters, surface_tension: float, progress=None,
+                      radius_cells: int = DROP_RADIUS_CELLS):
     """The relaxed shape (:class:`sph_bridge.droplet.DropShape`) of a ridge starting as a half
-    cylinder of :data:`DROP_RADIUS_CELLS` dx radius at zero gravity, and the steps taken. A
-    ridge's contact line is straight: its angle is Young's, while a round drop this small
-    (~7 dx tall) stands ~10° steeper at dx = 5e-4 m (decisions #39)."""
-    volume = droplet.ridge_volume(DROP_RADIUS_CELLS, params.dx)
+    cylinder of ``radius_cells`` dx radius at zero gravity, and the steps taken. A ridge's contact
+    line is straight: its angle is Young's, while a round drop this small (~7 dx tall) stands
+    ~10° steeper at dx = 5e-4 m (decisions #39)."""
+    volume = droplet.ridge_volume(radius_cells, params.dx)
     sim, t_min = droplet.prepare_drop(replace(params, gravity=(0.0, 0.0, 0.0)), volume, surface_tension, ridge=True)
     shape, _ = droplet.relax(sim, t_min, ridge=True, progress=progress)
     return shape, sim.record.steps
 
 
+def mean_ridge_angle(params: SphParameters, surface_tension: float, radius_cells: tuple[int, ...]) -> tuple[float, int]:
+    """Mean cap angle [deg] of zero-gravity ridges of the given starting radii, and their steps."""
+    angles, steps = [], 0
+    for n in radius_cells:
+        shape, ridge_steps = zero_gravity_drop(params, surface_tension, radius_cells=n)
+        angles.append(shape.contact_angle_deg)
+        steps += ridge_steps
+    return float(np.mean(angles)), steps
+
+
 def calibrate(dx: float, theta_deg: float, target_tension: float = droplet.SURFACE_TENSION, c0: float | None = None,
-              report=None, cal: Calibration | None = None) -> Calibration:
+              report=None, cal: Calibration | None = None,
+              ridge_sizes: tuple[int, ...] = (DROP_RADIUS_CELLS,)) -> Calibration:
     """s_ff (and the EOS reference density) for ``target_tension``, then s_sf for ``theta_deg``, at
-    resolution ``dx`` (module docstring). ``report(trial)`` is called after every trial; ``cal``,
-    if given, is filled in place (what an interrupted calibration had found). Raises
-    RuntimeError when a stage does not converge in :data:`MAX_TRIALS` trials."""
+    resolution ``dx`` (module docstring), the angle being the mean over ridges of ``ridge_sizes``
+    dx starting radius. ``report(trial)`` is called after every trial; ``cal``, if given, is
+    filled in place (what an interrupted calibration had found). Raises RuntimeError when a stage
+    does not converge in :data:`MAX_TRIALS` trials."""
     cal = cal or Calibration(dx=dx, c0=sound_speed(dx) if c0 is None else c0)
 
     def trial(*values):
@@ -134,13 +150,13 @@ def calibrate(dx: float, theta_deg: float, target_tension: float = droplet.SURFA
     young = 2.0 / cal.s_ff  # d cos(theta) / d s_sf of Young's law with pairwise forces
     s_sf, history = cal.s_ff * (1.0 + target_cos) / 2.0, []
     for _ in range(MAX_TRIALS):
-        shape, steps = zero_gravity_drop(cal.parameters(s_sf=s_sf), cal.surface_tension)
-        trial("contact_angle", cal.s_ff, s_sf, cal.rho0_fluid, shape.contact_angle_deg, math.nan, steps)
-        if not math.isfinite(shape.contact_angle_deg):
-            raise RuntimeError(f"the drop at s_sf = {s_sf:.4g} N has no measurable cap")
-        cos_now = math.cos(math.radians(shape.contact_angle_deg))
+        angle, steps = mean_ridge_angle(cal.parameters(s_sf=s_sf), cal.surface_tension, ridge_sizes)
+        trial("contact_angle", cal.s_ff, s_sf, cal.rho0_fluid, angle, math.nan, steps)
+        if not math.isfinite(angle):
+            raise RuntimeError(f"a drop at s_sf = {s_sf:.4g} N has no measurable cap")
+        cos_now = math.cos(math.radians(angle))
         history.append((s_sf, cos_now))
-        if abs(shape.contact_angle_deg - theta_deg) <= ANGLE_TOLERANCE_DEG:
+        if abs(angle - theta_deg) <= ANGLE_TOLERANCE_DEG:
             break
         slope = young
         if len(history) >= 2 and history[-1][0] != history[-2][0]:
@@ -149,5 +165,5 @@ def calibrate(dx: float, theta_deg: float, target_tension: float = droplet.SURFA
         s_sf = max(0.0, s_sf + (target_cos - cos_now) / slope)
     else:
         raise RuntimeError(f"contact angle did not reach {theta_deg}° within {MAX_TRIALS} trials")
-    cal.s_sf, cal.contact_angle_deg = s_sf, shape.contact_angle_deg
+    cal.s_sf, cal.contact_angle_deg = s_sf, angle
     return cal

@@ -180,7 +180,8 @@ def test_droplet_bad_input_is_one_line(tmp_path):
     cmd = [sys.executable, "-m", "sph_bridge"]
     for args, name in ((["droplet", "--theta", "190"], "--theta"), (["droplet", "--volume", "1e-9"], "--volume"),
                        (["droplet", "--theta", "40"], "--theta"), (["droplet", "--s-ff", "1e-6"], "--s-sf"),
-                       (["calibrate", "--dx", "0"], "--dx"), (["droplet", "--gravity", "-1"], "--gravity")):
+                       (["calibrate", "--dx", "0"], "--dx"), (["droplet", "--gravity", "-1"], "--gravity"),
+                       (["calibrate", "--ridge-sizes", "5"], "--ridge-sizes")):
         bad = tmp_path / "bad"
         proc = subprocess.run(cmd + args + ["--out", str(bad)], capture_output=True, text=True)
         lines = proc.stderr.strip().splitlines()
@@ -199,7 +200,7 @@ def test_calibration_search_converges_on_model_responses(monkeypatch, tmp_path):
         sigma = 0.0742 * (params.s_ff / 1e-6) ** 1.55 * (params.rho0_fluid / 1000.0) ** 2
         return sigma, params.rho0_fluid * (1.0 + 0.054 * params.s_ff / 1e-6), 843
 
-    def drop(params, sigma, progress=None):
+    def drop(params, sigma, progress=None, radius_cells=cal_mod.DROP_RADIUS_CELLS):
         cos_theta = min(1.0, -1.0 + 1.9 * params.s_sf / params.s_ff)
         theta = math.degrees(math.acos(cos_theta))
         return droplet.DropShape(1e-3, 3e-3, theta, theta, 2e-3, 0.0, 1e-5), 3500
@@ -222,6 +223,29 @@ def test_calibration_search_converges_on_model_responses(monkeypatch, tmp_path):
     rows = (out / "timeseries.csv").read_text().splitlines()
     assert len(rows) == summary["trials"] + 1 and rows[0].startswith("stage,")
 
+
+def test_calibration_sets_the_mean_angle_of_several_ridges(monkeypatch):
+    # decisions #39: with --ridge-sizes the angle stage calibrates the mean cap angle of ridges
+    # of several sizes; stand-in ridges read Young's angle plus a size offset (+2.5° at 8 dx,
+    # -1.5° at 12 dx, as scattered as the measured ones), so the mean sits 0.5° above Young's
+    from sph_bridge import calibrate as cal_mod
+
+    offsets = {8: 2.5, 12: -1.5}
+    asked = []
+
+    def drop(params, sigma, progress=None, radius_cells=cal_mod.DROP_RADIUS_CELLS):
+        asked.append(radius_cells)
+        theta = math.degrees(math.acos(min(1.0, -1.0 + 2.0 * params.s_sf / params.s_ff))) + offsets[radius_cells]
+        return droplet.DropShape(1e-3, 3e-3, theta, theta, 2e-3, 0.0, 1e-5), 100
+
+    monkeypatch.setattr(cal_mod, "slab_tension", lambda params, progress=None: (0.072, 1000.0, 10))
+    monkeypatch.setattr(cal_mod, "zero_gravity_drop", drop)
+    cal = cal_mod.calibrate(5e-4, THETA, cal=cal_mod.Calibration(dx=5e-4, c0=1.5), ridge_sizes=(8, 12))
+    angles = [t for t in cal.trials if t.stage == "contact_angle"]
+    assert asked == [8, 12] * len(angles) and angles[-1].steps == 200
+    assert abs(cal.contact_angle_deg - THETA) <= cal_mod.ANGLE_TOLERANCE_DEG
+    young = math.degrees(math.acos(-1.0 + 2.0 * cal.s_sf / cal.s_ff))
+    assert cal.contact_angle_deg == pytest.approx(young + 0.5, abs=1e-9)
 
 def test_shape_reading_of_a_lattice_block_on_a_wall():
     # the fluid fraction's 0.5 level sits dx/2 beyond the outer particle layers (decisions #38):
