@@ -356,7 +356,9 @@ def run_calibrate(args) -> int:
     def report(trial):
         if not args.quiet:
             what = "sigma = %.4f N/m, bulk %.1f kg/m^3" % (trial.measured, trial.bulk_density) \
-                if trial.stage == "tension" else "theta = %.2f°" % trial.measured
+                if trial.stage == "tension" else "theta = %.2f°" % trial.measured + (
+                    " (ridges: " + ", ".join(f"{a:.2f}°" for a in trial.ridge_angles_deg) + ")"
+                    if len(trial.ridge_angles_deg) > 1 else "")
             print(f"  {trial.stage}: s_ff = {trial.s_ff:.4g} N, s_sf = {trial.s_sf:.4g} N, rho0 = "
                   f"{trial.rho0_fluid:.1f}: {what} ({trial.steps} steps, {time.perf_counter() - start:.0f} s)",
                   flush=True)
@@ -386,8 +388,10 @@ def run_calibrate(args) -> int:
     with atomic_run_directory(out) as tmp:
         write_toml(tmp / "config.toml", config)
         write_json(tmp / "summary.json", summary)
-        columns = ("stage", "s_ff_n", "s_sf_n", "rho0_fluid", "measured", "bulk_density_kg_per_m3", "steps")
-        write_rows(tmp / "timeseries.csv", columns, [tuple(asdict(t).values()) for t in cal.trials])
+        columns = ("stage", "s_ff_n", "s_sf_n", "rho0_fluid", "measured", "bulk_density_kg_per_m3", "steps",
+                   "ridge_angles_deg")
+        rows = [(*list(asdict(t).values())[:-1], " ".join(f"{a:.3f}" for a in t.ridge_angles_deg)) for t in cal.trials]
+        write_rows(tmp / "timeseries.csv", columns, rows)
     print(f"calibrate: {status}; s_ff = {cal.s_ff:.4g} N, s_sf = {cal.s_sf:.4g} N, rho0 = {cal.rho0_fluid:.1f} kg/m^3 "
           f"(sigma {cal.surface_tension:.4f} N/m, theta {cal.contact_angle_deg:.2f}°)" + (f": {error}" if error else ""))
     print(f"run directory: {out}")

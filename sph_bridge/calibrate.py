@@ -54,6 +54,7 @@ class Trial:
     measured: float  # sigma [N/m] or theta [deg]
     bulk_density: float  # kg/m^3 (slab trials; nan for drops)
     steps: int
+    ridge_angles_deg: tuple = ()  # each ridge's angle (contact-angle trials; ``measured`` is their mean)
 
 
 @dataclass
@@ -96,14 +97,14 @@ def zero_gravity_drop(params: SphParameters, surface_tension: float, progress=No
     return shape, sim.record.steps
 
 
-def mean_ridge_angle(params: SphParameters, surface_tension: float, radius_cells: tuple[int, ...]) -> tuple[float, int]:
-    """Mean cap angle [deg] of zero-gravity ridges of the given starting radii, and their steps."""
+def ridge_angles(params: SphParameters, surface_tension: float, radius_cells: tuple[int, ...]) -> tuple[tuple, int]:
+    """Cap angles [deg] of zero-gravity ridges of the given starting radii, and their steps."""
     angles, steps = [], 0
     for n in radius_cells:
         shape, ridge_steps = zero_gravity_drop(params, surface_tension, radius_cells=n)
         angles.append(shape.contact_angle_deg)
         steps += ridge_steps
-    return float(np.mean(angles)), steps
+    return tuple(angles), steps
 
 
 def calibrate(dx: float, theta_deg: float, target_tension: float = droplet.SURFACE_TENSION, c0: float | None = None,
@@ -150,8 +151,9 @@ def calibrate(dx: float, theta_deg: float, target_tension: float = droplet.SURFA
     young = 2.0 / cal.s_ff  # d cos(theta) / d s_sf of Young's law with pairwise forces
     s_sf, history = cal.s_ff * (1.0 + target_cos) / 2.0, []
     for _ in range(MAX_TRIALS):
-        angle, steps = mean_ridge_angle(cal.parameters(s_sf=s_sf), cal.surface_tension, ridge_sizes)
-        trial("contact_angle", cal.s_ff, s_sf, cal.rho0_fluid, angle, math.nan, steps)
+        angles, steps = ridge_angles(cal.parameters(s_sf=s_sf), cal.surface_tension, ridge_sizes)
+        angle = float(np.mean(angles))
+        trial("contact_angle", cal.s_ff, s_sf, cal.rho0_fluid, angle, math.nan, steps, angles)
         if not math.isfinite(angle):
             raise RuntimeError(f"a drop at s_sf = {s_sf:.4g} N has no measurable cap")
         cos_now = math.cos(math.radians(angle))

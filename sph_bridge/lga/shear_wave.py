@@ -19,11 +19,13 @@ from . import automaton
 from .lattice import ROW, Geometry, Lattice, node_positions
 from .rules import viscosity
 
-CX = np.array([0.0, 1.0, 0.5, -0.5, -1.0, -0.5, 0.5])  # c_kx of channels 0..6
+CX = automaton.H_UNITS / 2.0  # c_kx of channels 0..6
 
 
 @dataclass(frozen=True)
 class ShearWave:
+    """A fitted decay: the lattice, the mode's mean amplitude per step and nu against Eq. 6."""
+
     rows: int
     length: int
     density: float  # particles per node
@@ -35,21 +37,20 @@ class ShearWave:
 
     @property
     def excess(self) -> float:
+        """nu_fit / nu_Eq.6 - 1."""
         return self.viscosity_fit / self.viscosity_eq6 - 1.0
 
 
-def mode_amplitude(lattice: Lattice, sines: np.ndarray, everything: np.ndarray) -> float:
+def mode_amplitude(lattice: Lattice, sines: np.ndarray, all_nodes: np.ndarray) -> float:
     """Projection of the rows' x-momentum (half units) on sin(k y): 2/rows sum_j P_j sin(k y_j)."""
     counts = np.zeros(lattice.ny, dtype=np.int64)
     momentum = np.zeros(lattice.ny, dtype=np.int64)
-    automaton.row_sums(lattice.state, everything, counts, momentum)
+    automaton.row_sums(lattice.state, all_nodes, counts, momentum)
     return 2.0 * float(momentum @ sines) / lattice.ny
 
 
 def decay(rows: int, length: int, density: float, velocity: float, steps: int, seed: int) -> tuple[np.ndarray, float]:
     """The mode's amplitude at steps 0..steps of one lattice, and k."""
-    if rows % 2:
-        raise ValueError(f"rows must be even (y is periodic), got {rows}")
     shape = (rows, length)
     lattice = Lattice(Geometry(np.zeros(shape, bool), np.zeros(shape, bool), periodic_y=True), density, seed)
     k = 2.0 * math.pi / (rows * ROW)
@@ -59,18 +60,18 @@ def decay(rows: int, length: int, density: float, velocity: float, steps: int, s
     # occupation d + e c_kx sin(ky) carries j_x = 3 e sin(ky) per node (sum of c_kx^2 over the six)
     # and u_x = j_x / density; e is set from the requested peak velocity
     e = velocity * density / 3.0
-    if not (0.0 < d - e and d + e < 1.0):
+    if not (velocity > 0.0 and 0.0 < d - e and d + e < 1.0):
         raise ValueError(f"velocity {velocity} needs channel occupations outside (0, 1) at density {density}")
     rng = np.random.default_rng(seed + 7919)
     occupied = np.stack([rng.random(shape) < d + e * CX[c] * wave for c in range(automaton.CHANNELS)])
     lattice.state = automaton.pack(occupied)
-    everything = automaton.pack(np.ones(shape, bool))
+    all_nodes = automaton.pack(np.ones(shape, bool))
     sines = np.sin(k * np.arange(rows) * ROW)
     amplitude = np.empty(steps + 1)
-    amplitude[0] = mode_amplitude(lattice, sines, everything)
+    amplitude[0] = mode_amplitude(lattice, sines, all_nodes)
     for t in range(1, steps + 1):
         lattice.run(1, 0.0)
-        amplitude[t] = mode_amplitude(lattice, sines, everything)
+        amplitude[t] = mode_amplitude(lattice, sines, all_nodes)
     return amplitude, k
 
 
@@ -86,6 +87,9 @@ def shear_wave_viscosity(rows: int = 64, length: int = 4096, density: float = 1.
     amplitude = np.mean(runs, axis=0)
     below = np.flatnonzero(amplitude[start:] < stop_fraction * amplitude[start])
     stop = start + (int(below[0]) if len(below) else len(amplitude) - start)
+    if amplitude[start] <= 0.0 or stop - start < 2:
+        raise ValueError(f"no decay to fit: the mode's amplitude at step {start} is {amplitude[start]:.3g} "
+                         "(raise velocity, length or seeds)")
     t = np.arange(start, stop)
     slope = np.polyfit(t, np.log(amplitude[start:stop]), 1)[0]
     return ShearWave(rows, length, density, k, amplitude, -slope / (k * k), nu_guess, (start, stop))
