@@ -355,10 +355,12 @@ def run_calibrate(args) -> int:
 
     def report(trial):
         if not args.quiet:
-            what = "sigma = %.4f N/m, bulk %.1f kg/m^3" % (trial.measured, trial.bulk_density) \
-                if trial.stage == "tension" else "theta = %.2f°" % trial.measured + (
-                    " (ridges: " + ", ".join(f"{a:.2f}°" for a in trial.ridge_angles_deg) + ")"
-                    if len(trial.ridge_angles_deg) > 1 else "")
+            if trial.stage == "tension":
+                what = f"sigma = {trial.measured:.4f} N/m, bulk {trial.bulk_density:.1f} kg/m^3"
+            else:
+                what = f"theta = {trial.measured:.2f}°"
+                if len(trial.ridge_angles_deg) > 1:
+                    what += " (ridges: " + ", ".join(f"{a:.2f}°" for a in trial.ridge_angles_deg) + ")"
             print(f"  {trial.stage}: s_ff = {trial.s_ff:.4g} N, s_sf = {trial.s_sf:.4g} N, rho0 = "
                   f"{trial.rho0_fluid:.1f}: {what} ({trial.steps} steps, {time.perf_counter() - start:.0f} s)",
                   flush=True)
@@ -390,7 +392,8 @@ def run_calibrate(args) -> int:
         write_json(tmp / "summary.json", summary)
         columns = ("stage", "s_ff_n", "s_sf_n", "rho0_fluid", "measured", "bulk_density_kg_per_m3", "steps",
                    "ridge_angles_deg")
-        rows = [(*list(asdict(t).values())[:-1], " ".join(f"{a:.3f}" for a in t.ridge_angles_deg)) for t in cal.trials]
+        rows = [(t.stage, t.s_ff, t.s_sf, t.rho0_fluid, t.measured, t.bulk_density, t.steps,
+                 " ".join(f"{a:.3f}" for a in t.ridge_angles_deg)) for t in cal.trials]
         write_rows(tmp / "timeseries.csv", columns, rows)
     print(f"calibrate: {status}; s_ff = {cal.s_ff:.4g} N, s_sf = {cal.s_sf:.4g} N, rho0 = {cal.rho0_fluid:.1f} kg/m^3 "
           f"(sigma {cal.surface_tension:.4f} N/m, theta {cal.contact_angle_deg:.2f}°)" + (f": {error}" if error else ""))

@@ -61,12 +61,13 @@ def decay(rows: int, length: int, density: float, velocity: float, steps: int, s
     # and u_x = j_x / density; e is set from the requested peak velocity
     e = velocity * density / 3.0
     if not (velocity > 0.0 and 0.0 < d - e and d + e < 1.0):
-        raise ValueError(f"velocity {velocity} needs channel occupations outside (0, 1) at density {density}")
+        raise ValueError(f"velocity must be > 0 and keep the channel occupations inside (0, 1) at density "
+                         f"{density}, got {velocity}")
     rng = np.random.default_rng(seed + 7919)
     occupied = np.stack([rng.random(shape) < d + e * CX[c] * wave for c in range(automaton.CHANNELS)])
     lattice.state = automaton.pack(occupied)
     all_nodes = automaton.pack(np.ones(shape, bool))
-    sines = np.sin(k * np.arange(rows) * ROW)
+    sines = wave[:, 0]  # y is the row's: the odd rows' offset is along x
     amplitude = np.empty(steps + 1)
     amplitude[0] = mode_amplitude(lattice, sines, all_nodes)
     for t in range(1, steps + 1):
