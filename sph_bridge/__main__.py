@@ -2,7 +2,8 @@
 with run directories; ``python -m sph_bridge lga ...``: the FHP-II lattice-gas studies
 (:mod:`sph_bridge.lga.cli`).
 
-    python -m sph_bridge droplet     [--dx M] [--theta DEG] [--volume M3] [--gravity G] [--ridge] [--out DIR]
+    python -m sph_bridge droplet     [--dx M] [--theta DEG] [--volume M3] [--gravity G] [--ridge] [--start-height M]
+                                     [--out DIR]
     python -m sph_bridge calibrate   [--dx M] [--theta DEG] [--surface-tension N/M] [--ridge-sizes N ...] [--out DIR]
     python -m sph_bridge hydrostatic [--dx M] [--layers N] [--gravity G] [--out DIR]
     python -m sph_bridge poiseuille  [--dx M] [--layers N] [--gravity G] [--viscosity MU] [--out DIR]
@@ -44,6 +45,7 @@ DEFAULT_DX = 5e-4  # m: the coarsest resolution of seed 000 Table 1 (CI runs the
 DEFAULT_THETA = 65.16  # degrees: PMMA, the lab value of seed 000 §4.1
 DEFAULT_VOLUME = 2.5e-7  # m^3: ~2,000 particles at dx = 5e-4 m
 MIN_DROP_CELLS = 400  # a drop needs a few kernel supports across to have a surface and a bulk
+MIN_START_LAYERS = 3  # a starting slab lower than this is mostly surface
 SNAPSHOT_EVERY = 4  # samples between the droplet's ParaView frames
 
 
@@ -70,6 +72,10 @@ def build_parser() -> OneLineParser:
                    help=f"downward gravity [m/s^2] (default {cases.GRAVITY}; 0: a spherical cap at any size)")
     p.add_argument("--ridge", action="store_true",
                    help=f"a 2-D drop, periodic over {droplet.RIDGE_LENGTH} dx along y (de Gennes' puddle limit)")
+    p.add_argument("--start-height", type=positive_number,
+                   help="the starting drop's greatest height [m]: a slab (cylinder) of this height where the "
+                        "hemisphere (half cylinder) would be taller; started below its equilibrium the contact "
+                        "line recedes (default: 2 lambda_c under gravity, none at zero gravity)")
     p.add_argument("--calibration", type=Path, help="a calibrate run directory whose s_ff, s_sf, c0, rho0 to use")
     p.add_argument("--s-ff", type=positive_number, help="fluid-fluid pairwise strength [N] (with --s-sf, "
                    "instead of a calibration)")
@@ -227,9 +233,13 @@ def run_droplet(args) -> int:
     if args.volume / args.dx**3 < MIN_DROP_CELLS:
         raise InputError(f"--volume: {args.volume:g} m^3 is {args.volume / args.dx**3:.0f} particles at dx = "
                          f"{args.dx:g} m; at least {MIN_DROP_CELLS} are needed")
+    if args.start_height is not None and args.start_height < MIN_START_LAYERS * args.dx:
+        raise InputError(f"--start-height: {args.start_height:g} m is under {MIN_START_LAYERS} particle layers at "
+                         f"dx = {args.dx:g} m; at least {MIN_START_LAYERS * args.dx:g} m is allowed")
     params, sigma, source = droplet_parameters(args)
     out = new_run_directory(args.out, args.command)
-    sim, t_min = droplet.prepare_drop(params, args.volume, sigma, args.ridge)
+    sim, t_min = droplet.prepare_drop(params, args.volume, sigma, args.ridge, args.start_height)
+    start_top = float(sim.pos[sim.fluid, 2].max()) + args.dx / 2  # the starting drop's surface
     bar, advance = progress_bar(args, t_min)
     frames, rows, status, settled = [], [], "finished", False
 
@@ -249,6 +259,7 @@ def run_droplet(args) -> int:
     summary = droplet_summary(args, sim, shape, sigma, source, status)
     summary["settled"] = settled
     config = config_of(args, sim, geometry={"dx_m": args.dx, "volume_m3": args.volume, "ridge": args.ridge,
+                                            "start_top_m": start_top,
                                             "ridge_length_m": droplet.RIDGE_LENGTH * args.dx if args.ridge else 0.0},
                        calibration={"source": source})
     with atomic_run_directory(out) as tmp:

@@ -76,14 +76,14 @@ def starting_drop(volume: float, dx: float, max_height: float, ridge: bool) -> n
     """Lattice sites (cells of dx^3 resting on z = 0) of the starting drop holding ``volume``: a
     hemisphere centred on the z axis (a ridge: a half cylinder along y over its periodic length
     :data:`RIDGE_LENGTH` dx), or, where that would be taller than ``max_height``, a cylinder
-    (a slab) of that height. Starting no lower than the equilibrium, the contact line advances,
-    as in the calibration."""
+    (a slab) of that height rounded to whole layers (at least one), as wide as the volume needs.
+    Starting no lower than the equilibrium, the contact line advances, as in the calibration."""
     length = RIDGE_LENGTH * dx
     radius = math.sqrt(2.0 * volume / (math.pi * length)) if ridge else (3.0 * volume / (2.0 * math.pi)) ** (1.0 / 3.0)
     if radius <= max_height:
         top, reach = radius, radius
     else:
-        top = max_height
+        top = max(1, round(max_height / dx)) * dx  # the layers whose centres lie below max_height
         reach = volume / (2.0 * top * length) if ridge else math.sqrt(volume / (math.pi * top))
     n = int(math.ceil(reach / dx)) + 1
     if ridge:
@@ -273,12 +273,18 @@ def relax(sim: Simulation, t_min: float, ridge: bool = False, progress=None, on_
     return average(shapes[-window:]), settled
 
 
-def prepare_drop(params: SphParameters, volume: float, surface_tension: float, ridge: bool = False):
-    """The starting drop (no taller than 2 lambda_c, the puddle height at 180°) on its plate with
-    the damping of :func:`relaxation`, and its minimum relaxation time for :func:`relax`. The
-    calibration and the droplet command share this protocol."""
+def prepare_drop(params: SphParameters, volume: float, surface_tension: float, ridge: bool = False,
+                 start_height: float | None = None):
+    """The starting drop on its plate with the damping of :func:`relaxation`, and its minimum
+    relaxation time for :func:`relax`. The calibration and the droplet command share this
+    protocol. The drop is no taller than ``start_height`` (default 2 lambda_c, the puddle height
+    at 180°, or none at zero gravity): starting above its equilibrium its contact line advances,
+    starting below it recedes, and the two stop at different angles (contact-angle hysteresis of
+    the lattice wall, decisions #57)."""
     g = float(np.linalg.norm(params.gravity))
     max_height = 2.0 * capillary_length(surface_tension, params.rho0_fluid, g) if g > 0 else math.inf
+    if start_height is not None:
+        max_height = start_height
     fluid = starting_drop(volume, params.dx, max_height, ridge)
     params, t_min = relaxation(params, surface_tension, float(np.abs(fluid[:, 0]).max()) + params.dx / 2)
     return sessile(params, volume, ridge, max_height), t_min
