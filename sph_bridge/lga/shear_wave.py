@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import automaton
+from . import automaton, reference
 from .lattice import ROW, Geometry, Lattice, node_positions
 from .rules import viscosity
 
@@ -34,6 +34,7 @@ class ShearWave:
     viscosity_fit: float
     viscosity_eq6: float
     fit_steps: tuple[int, int]  # the window of the log-linear fit
+    viscosity_error: float  # standard error of viscosity_fit, jackknife over the seeds (0 for one seed)
 
     @property
     def excess(self) -> float:
@@ -77,15 +78,33 @@ def decay(rows: int, length: int, density: float, velocity: float, steps: int, s
 
 
 def shear_wave_viscosity(rows: int = 64, length: int = 4096, density: float = 1.0, velocity: float = 0.05,
-                         seeds: int = 4, start: int = 20, stop_fraction: float = 0.25) -> ShearWave:
-    """nu from the decay of the mean amplitude over ``seeds`` lattices: a least-squares line
-    through log A(t) from step ``start`` until A first falls below ``stop_fraction`` of A(start)
-    (later the thermal noise of the rows' momentum, ~sqrt(length), takes over)."""
+                         seeds: int = 4, start: int = 20, stop_fraction: float = 0.25,
+                         implementation: str = "kernel") -> ShearWave:
+    """nu from the decay of the amplitude averaged over ``seeds`` lattices (:func:`fit_decay`; the
+    window ends at ``stop_fraction`` because later the thermal noise of the rows' momentum,
+    ~sqrt(length), takes over), with its standard error over the lattices. ``implementation``
+    "reference" runs the table-driven one-byte-per-node FHP-II of :mod:`.reference` instead of
+    the bit-parallel kernel (decisions #58)."""
+    decays = {"kernel": decay, "reference": reference.decay}
+    if implementation not in decays:
+        raise ValueError(f"implementation must be one of {sorted(decays)}, got {implementation!r}")
     nu_guess = viscosity(density)
     k = 2.0 * math.pi / (rows * ROW)
     steps = start + int(math.ceil(math.log(1.0 / stop_fraction) / (nu_guess * k * k) * 1.5))
-    runs = [decay(rows, length, density, velocity, steps, seed)[0] for seed in range(seeds)]
-    amplitude = np.mean(runs, axis=0)
+    runs = np.array([decays[implementation](rows, length, density, velocity, steps, seed)[0]
+                     for seed in range(seeds)])
+    amplitude = runs.mean(axis=0)
+    nu, window = fit_decay(amplitude, k, start, stop_fraction)
+    # jackknife over the lattices: the fit repeated with each one left out
+    left_out = [fit_decay(np.delete(runs, i, axis=0).mean(axis=0), k, start, stop_fraction)[0]
+                for i in range(seeds)] if seeds > 1 else [nu]
+    error = math.sqrt((seeds - 1) / seeds * float(np.sum((np.array(left_out) - np.mean(left_out)) ** 2)))
+    return ShearWave(rows, length, density, k, amplitude, nu, nu_guess, window, error)
+
+
+def fit_decay(amplitude: np.ndarray, k: float, start: int, stop_fraction: float) -> tuple[float, tuple[int, int]]:
+    """nu = -slope / k^2 of a least-squares line through log A(t) from ``start`` until A first
+    falls below ``stop_fraction`` of A(start), and that window."""
     below = np.flatnonzero(amplitude[start:] < stop_fraction * amplitude[start])
     stop = start + (int(below[0]) if len(below) else len(amplitude) - start)
     if amplitude[start] <= 0.0 or stop - start < 2:
@@ -93,4 +112,4 @@ def shear_wave_viscosity(rows: int = 64, length: int = 4096, density: float = 1.
                          "(raise velocity, length or seeds)")
     t = np.arange(start, stop)
     slope = np.polyfit(t, np.log(amplitude[start:stop]), 1)[0]
-    return ShearWave(rows, length, density, k, amplitude, -slope / (k * k), nu_guess, (start, stop))
+    return -slope / (k * k), (start, stop)
