@@ -9,7 +9,8 @@ neighbour it comes from, found by explicit index arithmetic on the triangular la
 (node (i, j) at x = i + (j mod 2)/2, y = j sqrt(3)/2). The lattice is periodic both ways and has
 no walls or forcing: it exists to measure the automaton's own viscosity with an independent
 implementation (:func:`sph_bridge.lga.shear_wave.shear_wave_viscosity`, ``implementation="reference"``).
-It is ~10x slower than the kernel and not used by any run.
+It is 30-40x slower than the kernel and not used by any run. The shear wave's start and its
+checks repeat :func:`sph_bridge.lga.shear_wave.decay`'s on purpose: no kernel code may run here.
 """
 
 from __future__ import annotations

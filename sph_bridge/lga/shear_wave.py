@@ -34,7 +34,7 @@ class ShearWave:
     viscosity_fit: float
     viscosity_eq6: float
     fit_steps: tuple[int, int]  # the window of the log-linear fit
-    viscosity_error: float  # standard error of viscosity_fit, jackknife over the seeds (0 for one seed)
+    viscosity_stderr: float  # standard error of viscosity_fit, jackknife over the seeds (nan for one seed)
 
     @property
     def excess(self) -> float:
@@ -88,6 +88,8 @@ def shear_wave_viscosity(rows: int = 64, length: int = 4096, density: float = 1.
     decays = {"kernel": decay, "reference": reference.decay}
     if implementation not in decays:
         raise ValueError(f"implementation must be one of {sorted(decays)}, got {implementation!r}")
+    if seeds < 1:
+        raise ValueError(f"seeds must be >= 1, got {seeds}")
     nu_guess = viscosity(density)
     k = 2.0 * math.pi / (rows * ROW)
     steps = start + int(math.ceil(math.log(1.0 / stop_fraction) / (nu_guess * k * k) * 1.5))
@@ -96,10 +98,12 @@ def shear_wave_viscosity(rows: int = 64, length: int = 4096, density: float = 1.
     amplitude = runs.mean(axis=0)
     nu, window = fit_decay(amplitude, k, start, stop_fraction)
     # jackknife over the lattices: the fit repeated with each one left out
-    left_out = [fit_decay(np.delete(runs, i, axis=0).mean(axis=0), k, start, stop_fraction)[0]
-                for i in range(seeds)] if seeds > 1 else [nu]
-    error = math.sqrt((seeds - 1) / seeds * float(np.sum((np.array(left_out) - np.mean(left_out)) ** 2)))
-    return ShearWave(rows, length, density, k, amplitude, nu, nu_guess, window, error)
+    left_out = np.array([fit_decay(np.delete(runs, i, axis=0).mean(axis=0), k, start, stop_fraction)[0]
+                         for i in range(seeds)])
+    stderr = math.nan
+    if seeds > 1:
+        stderr = math.sqrt((seeds - 1) / seeds * float(np.sum((left_out - left_out.mean()) ** 2)))
+    return ShearWave(rows, length, density, k, amplitude, nu, nu_guess, window, stderr)
 
 
 def fit_decay(amplitude: np.ndarray, k: float, start: int, stop_fraction: float) -> tuple[float, tuple[int, int]]:
