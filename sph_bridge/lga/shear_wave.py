@@ -97,11 +97,10 @@ def shear_wave_viscosity(rows: int = 64, length: int = 4096, density: float = 1.
                      for seed in range(seeds)])
     amplitude = runs.mean(axis=0)
     nu, window = fit_decay(amplitude, k, start, stop_fraction)
-    # jackknife over the lattices: the fit repeated with each one left out
-    left_out = np.array([fit_decay(np.delete(runs, i, axis=0).mean(axis=0), k, start, stop_fraction)[0]
-                         for i in range(seeds)])
     stderr = math.nan
-    if seeds > 1:
+    if seeds > 1:  # jackknife over the lattices: the fit repeated with each one left out
+        left_out = np.array([fit_decay(np.delete(runs, i, axis=0).mean(axis=0), k, start, stop_fraction)[0]
+                             for i in range(seeds)])
         stderr = math.sqrt((seeds - 1) / seeds * float(np.sum((left_out - left_out.mean()) ** 2)))
     return ShearWave(rows, length, density, k, amplitude, nu, nu_guess, window, stderr)
 
