@@ -8,10 +8,11 @@
 pickled flow model and state, so that a late stretch of a run (A1 crawls from t ~ 0.023 s, ~45
 minutes in) can be studied again in minutes. ``log`` resumes the checkpoint for --steps flow
 steps with ``CoupledFlowModel.pv_log`` on, writes every P-V evaluation to CSV and prints which
-domains hold the largest mismatch (``--span`` runs a stretch of simulated time instead, and
-``--dt`` changes the nominal flow step). A resumed run repeats a straight one to the printed digits
-(checked on the reduced A1). ``probe`` tests how smooth the P-V map is at the checkpoint's
-next step. This is a diagnostic: the checkpoint format is this script's own.
+domains hold the largest mismatch (``--span`` runs a stretch of simulated time instead,
+``--dt`` changes the nominal flow step and ``--damping`` YADE's local damping). A resumed run
+repeats a straight one to the printed digits (checked on the reduced A1). ``probe`` tests how
+smooth the P-V map is at the checkpoint's next step. This is a diagnostic: the checkpoint
+format is this script's own.
 """
 import argparse
 import collections
@@ -28,7 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from hmdem.coupling.model import CoupledFlowModel, PVEvaluation  # noqa: E402
 from hmdem.coupling.pockets import PocketNewton, trapped_pockets  # noqa: E402
-from hmdem.cli import non_negative_int, positive_int  # noqa: E402
+from hmdem.cli import local_damping, non_negative_int, positive_int  # noqa: E402
 from hmdem.coupling.quasi_newton import InterfaceQuasiNewton  # noqa: E402
 from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, start_grains  # noqa: E402
 from hmdem.dem.assembly import DiscAssembly  # noqa: E402
@@ -82,8 +83,10 @@ def resume(checkpoint: Path):
 def log(checkpoint: Path, steps: int, out_csv: Path, pocket_newton: bool | None = None,
         reuse_steps: int | None = None, max_iter: int | None = None, rtol: float | None = None,
         dt: float | None = None, span: float | None = None, skeleton_newton: bool | None = None,
-        max_columns: int | None = None) -> None:
+        max_columns: int | None = None, damping: float | None = None) -> None:
     model, state = resume(checkpoint)
+    if damping is not None:  # YADE's local damping from here on, as radial --damping sets it for a run
+        model.coupling.dem_damping = model.grains.damping = damping
     if skeleton_newton is not None:
         model.coupling.pv_skeleton_newton = skeleton_newton
     if dt is not None:  # the nominal flow step, as radial --dt sets it
@@ -192,6 +195,8 @@ def main() -> None:
     g.add_argument("--dt", type=float, help="nominal flow step, as radial --dt (default: as checkpointed)")
     g.add_argument("--skeleton-newton", action=argparse.BooleanOptionalAction, default=None,
                    help="precondition IQN with the linearised skeleton's Newton step (default: as checkpointed)")
+    g.add_argument("--damping", type=local_damping,
+                   help="YADE local damping from the checkpoint on (default: as checkpointed)")
     g.add_argument("--span", type=float, help="run this much simulated time [s] instead of --steps steps")
     b = sub.add_parser("probe", help=probe.__doc__.split("\n")[0])
     b.add_argument("--checkpoint", type=Path, required=True)
@@ -205,7 +210,7 @@ def main() -> None:
         save(args.case, args.until, args.checkpoint)
     elif args.command == "log":
         log(args.checkpoint, args.steps, args.csv, args.pocket_newton, args.pv_reuse_steps, args.pv_max_iter,
-            args.pv_tol, args.dt, args.span, args.skeleton_newton, args.pv_max_columns)
+            args.pv_tol, args.dt, args.span, args.skeleton_newton, args.pv_max_columns, args.damping)
     else:
         probe(args.checkpoint, args.domains, args.deltas, args.dt, args.dem_cycles)
 

@@ -4,8 +4,8 @@ Grains are spheres in z = 0 behaving as 1 m thick discs (digest §15.1), with a 
 contact and Coulomb friction (Eqs. 9-10, ``Law2_ScGeom_FrictPhys_CundallStrack``) and local
 damping. Fluid pressure forces enter as YADE permanent forces (refreshed by the coupling),
 boundary grains can be fixed. Everything crosses this boundary as numpy arrays; YADE's Python
-API is per body, so the accessors below loop over bodies once per call (a few ms for 1,400
-grains, against seconds of DEM cycles per flow step).
+API is mostly per body, so most accessors below loop over bodies once per call (a few ms for
+1,400 grains, against ~0.1-0.2 s of DEM cycles per P-V evaluation of B1); positions come in bulk.
 """
 
 from __future__ import annotations
@@ -96,9 +96,13 @@ class DiscAssembly:
         return float(self._O.time) - self._time_offset
 
     def positions(self) -> np.ndarray:
-        """Current centres (n, 2)."""
-        bodies = self._O.bodies
-        return np.array([[bodies[i].state.pos[0], bodies[i].state.pos[1]] for i in self.ids])
+        """Current centres (n, 2). YADE's ``coordsAndDisplacements`` reads one coordinate of every
+        body in C++ (0.35 ms for x and y of 1,395 discs, against 3.8 ms body by body); the scene
+        holds these discs only, so the body ids index its lists."""
+        from yade import _utils
+
+        x, y = _utils.coordsAndDisplacements(0)[0], _utils.coordsAndDisplacements(1)[0]
+        return np.column_stack((x, y))[self.ids]
 
     def velocities(self) -> np.ndarray:
         bodies = self._O.bodies
@@ -106,11 +110,10 @@ class DiscAssembly:
 
     def set_external_forces(self, forces: np.ndarray) -> None:
         """Permanent forces (n, 2) [N per m of depth], kept until replaced (fluid pressure, Eq. 8)."""
-        from yade.minieigenHP import Vector3
-
         set_force = self._O.forces.setPermF
-        for i, (fx, fy) in zip(self.ids, np.asarray(forces, float)):
-            set_force(i, Vector3(fx, fy, 0.0))
+        # plain tuples convert to YADE's Vector3 in C++: 0.5 ms for 1,395 discs, 3.2 ms via Vector3
+        for i, (fx, fy) in zip(self.ids, np.asarray(forces, float).tolist()):
+            set_force(i, (fx, fy, 0.0))
 
     def save_state(self) -> None:
         """Keep what the DEM carries from one cycle to the next (:meth:`restore_state` returns to
