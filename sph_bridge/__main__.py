@@ -3,8 +3,9 @@ with run directories; ``python -m sph_bridge lga ...``: the FHP-II lattice-gas s
 (:mod:`sph_bridge.lga.cli`).
 
     python -m sph_bridge droplet     [--dx M] [--theta DEG] [--volume M3] [--gravity G] [--ridge] [--start-height M]
+                                     [--anneal U] [--seed N] [--out DIR]
+    python -m sph_bridge calibrate   [--dx M] [--theta DEG] [--surface-tension N/M] [--ridge-sizes N ...] [--anneal U]
                                      [--out DIR]
-    python -m sph_bridge calibrate   [--dx M] [--theta DEG] [--surface-tension N/M] [--ridge-sizes N ...] [--out DIR]
     python -m sph_bridge hydrostatic [--dx M] [--layers N] [--gravity G] [--out DIR]
     python -m sph_bridge poiseuille  [--dx M] [--layers N] [--gravity G] [--viscosity MU] [--out DIR]
 
@@ -49,6 +50,10 @@ MIN_START_LAYERS = 3  # a starting slab lower than this is mostly surface
 SNAPSHOT_EVERY = 4  # samples between the droplet's ParaView frames
 
 
+ANNEAL_HELP = ("starting rms thermal speed [m/s] of an annealed relaxation: Langevin kicks against the "
+               "damping, falling to none by half its minimum duration (0: damping alone)")
+
+
 class _Parser(OneLineParser):
     command = PROG
 
@@ -81,6 +86,9 @@ def build_parser() -> OneLineParser:
                    "instead of a calibration)")
     p.add_argument("--s-sf", type=non_negative_number, help="solid-fluid pairwise strength [N]")
     p.add_argument("--c0", type=positive_number, help="speed of sound [m/s] (default: seed 000 Table 1)")
+    p.add_argument("--anneal", type=non_negative_number,
+                   help=ANNEAL_HELP + " (default: the calibration's, 0 for the shipped ones and --s-ff/--s-sf)")
+    p.add_argument("--seed", type=int_at_least(0), default=0, help="seed of the annealing's kicks (default 0)")
     text = "find s_ff for a surface tension (free slab) and s_sf for a contact angle (zero-gravity drop)"
     p = sub.add_parser("calibrate", help=text, description=text)
     p.add_argument("--dx", type=positive_number, default=DEFAULT_DX, help=f"particle spacing [m] (default {DEFAULT_DX})")
@@ -91,6 +99,8 @@ def build_parser() -> OneLineParser:
     p.add_argument("--ridge-sizes", type=int_at_least(MIN_RIDGE_CELLS), nargs="+", default=[DROP_RADIUS_CELLS],
                    metavar="N", help="starting radii [dx] of the zero-gravity ridges whose mean angle is "
                    f"calibrated (each >= {MIN_RIDGE_CELLS}; default {DROP_RADIUS_CELLS})")
+    p.add_argument("--anneal", type=non_negative_number, default=0.0,
+                   help=ANNEAL_HELP + " of the ridges (default 0)")
     for name, text in (("hydrostatic", "water at rest between two walls under gravity: dP/dz = rho g"),
                        ("poiseuille", "body-force flow between two walls: the parabolic profile")):
         p = sub.add_parser(name, help=text, description=text)
@@ -194,8 +204,10 @@ def droplet_parameters(args):
         raise InputError("--s-ff and --s-sf: give both strengths or neither")
     if args.s_ff is not None:
         args.theta = args.theta or DEFAULT_THETA
+        args.anneal = args.anneal or 0.0
         c0 = args.c0 or sound_speed(args.dx)
-        return SphParameters(dx=args.dx, c0=c0, s_ff=args.s_ff, s_sf=args.s_sf, gravity=gravity), sigma, "command line"
+        return (SphParameters(dx=args.dx, c0=c0, s_ff=args.s_ff, s_sf=args.s_sf, gravity=gravity, anneal=args.anneal,
+                              seed=args.seed), sigma, "command line")
     if args.c0 is not None:
         raise InputError("--c0: a calibration fixes c0 (surface tension and angle depend on it); give it with "
                          "--s-ff/--s-sf or calibrate at that c0")
@@ -215,8 +227,10 @@ def droplet_parameters(args):
         if args.theta is not None and abs(args.theta - values["target_contact_angle_deg"]) > 1e-2:
             raise InputError(f"--theta: the calibration targets {values['target_contact_angle_deg']:g}°")
         args.theta = values["target_contact_angle_deg"]
+        same_protocol(args, float(cal.get("anneal_m_per_s", 0.0)), f"the calibration {str(args.calibration)!r}")
         params = SphParameters(dx=args.dx, c0=values["c0_m_per_s"], rho0_fluid=values["rho0_fluid"],
-                               s_ff=values["s_ff_n"], s_sf=values["s_sf_n"], gravity=gravity)
+                               s_ff=values["s_ff_n"], s_sf=values["s_sf_n"], gravity=gravity, anneal=args.anneal,
+                               seed=args.seed)
         return params, values["surface_tension_n_per_m"], str(args.calibration)
     args.theta = args.theta or DEFAULT_THETA
     entry = calibrations.lookup(args.dx, args.theta)
@@ -224,9 +238,19 @@ def droplet_parameters(args):
         raise InputError(f"--theta: no calibration for dx = {args.dx:g} m and theta = {args.theta:g}°; run "
                          f"'{PROG} calibrate --dx {args.dx:g} --theta {args.theta:g}' and pass its run directory "
                          "with --calibration")
+    same_protocol(args, entry.anneal, f"the shipped calibration for dx = {args.dx:g} m and theta = {args.theta:g}°")
     params = SphParameters(dx=args.dx, c0=entry.c0, rho0_fluid=entry.rho0_fluid, s_ff=entry.s_ff, s_sf=entry.s_sf,
-                           gravity=gravity)
+                           gravity=gravity, anneal=args.anneal, seed=args.seed)
     return params, entry.surface_tension, entry.command
+
+
+def same_protocol(args, anneal: float, what: str) -> None:
+    """A calibrated angle belongs to its relaxation protocol (decisions #57, #59): the droplet
+    relaxes as its calibration did; sets ``args.anneal`` where it was not given."""
+    if args.anneal is not None and abs(args.anneal - anneal) > 1e-12:
+        raise InputError(f"--anneal: {what} relaxed with --anneal {anneal:g}; calibrate with --anneal "
+                         f"{args.anneal:g} and pass its run directory with --calibration")
+    args.anneal = anneal
 
 
 def run_droplet(args) -> int:
@@ -298,6 +322,7 @@ def droplet_summary(args, sim, shape, sigma, source, status) -> dict:
     summary = {"case": "droplet", "status": status, "geometry": "ridge" if args.ridge else "drop",
                "calibration": source, "s_ff_n": sim.params.s_ff, "s_sf_n": sim.params.s_sf,
                "c0_m_per_s": sim.params.c0, "rho0_fluid": sim.params.rho0_fluid, "surface_tension_n_per_m": sigma,
+               "anneal_m_per_s": sim.params.anneal, "seed": sim.params.seed,
                "height_m": shape.height, "width_m": shape.width, "aspect": aspect,
                "contact_angle_deg": shape.contact_angle_deg, "target_contact_angle_deg": args.theta,
                "contact_angle_error_deg": shape.contact_angle_deg - args.theta,
@@ -361,7 +386,7 @@ def run_calibrate(args) -> int:
     from .calibrate import Calibration, calibrate, sound_speed
 
     out = new_run_directory(args.out, args.command)
-    cal = Calibration(dx=args.dx, c0=args.c0 or sound_speed(args.dx))
+    cal = Calibration(dx=args.dx, c0=args.c0 or sound_speed(args.dx), anneal=args.anneal)
     start = time.perf_counter()
 
     def report(trial):
@@ -391,13 +416,13 @@ def run_calibrate(args) -> int:
                "surface_tension_n_per_m": cal.surface_tension, "target_surface_tension_n_per_m": args.surface_tension,
                "bulk_density_kg_per_m3": cal.bulk_density, "contact_angle_deg": cal.contact_angle_deg,
                "target_contact_angle_deg": args.theta, "ridge_sizes_dx": list(args.ridge_sizes),
-               "trials": len(cal.trials),
+               "anneal_m_per_s": args.anneal, "trials": len(cal.trials),
                "steps": sum(t.steps for t in cal.trials), "wall_time_s": time.perf_counter() - start}
     if error:
         summary["error"] = error
     config = {"run": {"command": f"{PROG} " + " ".join(args.argv), "case": "calibrate"},
               "targets": {"dx_m": args.dx, "theta_deg": args.theta, "surface_tension_n_per_m": args.surface_tension,
-                          "c0_m_per_s": cal.c0, "ridge_sizes_dx": list(args.ridge_sizes)}}
+                          "c0_m_per_s": cal.c0, "ridge_sizes_dx": list(args.ridge_sizes), "anneal_m_per_s": args.anneal}}
     with atomic_run_directory(out) as tmp:
         write_toml(tmp / "config.toml", config)
         write_json(tmp / "summary.json", summary)

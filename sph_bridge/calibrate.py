@@ -67,11 +67,12 @@ class Calibration:
     surface_tension: float = math.nan
     bulk_density: float = math.nan
     contact_angle_deg: float = math.nan
+    anneal: float = 0.0  # m/s: the ridges' relaxation is annealed at this thermal speed (decisions #59)
     trials: list = field(default_factory=list)
 
     def parameters(self, **changes) -> SphParameters:
         return replace(SphParameters(dx=self.dx, c0=self.c0, rho0_fluid=self.rho0_fluid, s_ff=self.s_ff,
-                                     s_sf=self.s_sf), **changes)
+                                     s_sf=self.s_sf, anneal=self.anneal), **changes)
 
 
 def slab_tension(params: SphParameters, progress=None) -> tuple[float, float, int]:

@@ -19,6 +19,7 @@ class Calibrated:
     surface_tension: float  # N/m, measured on the slab at these values
     contact_angle_deg: float  # measured on the zero-gravity drop at these values
     command: str
+    anneal: float = 0.0  # m/s: the relaxation protocol the angle was measured with (decisions #59)
 
 
 TABLE: dict[tuple[float, float], Calibrated] = {

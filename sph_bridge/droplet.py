@@ -244,6 +244,7 @@ def relaxation(params: SphParameters, surface_tension: float, size: float) -> tu
 SAMPLES = 40  # shape samples per minimum relaxation; the last quarter of them is averaged
 SETTLED = 0.005  # the mean height of the last quarter moved less than this (relative) from the one before
 MAX_EXTENSION = 4  # a relaxation ends by this many times its minimum duration, settled or not
+ANNEAL_FRACTION = 0.5  # an annealed relaxation's kicks end at this fraction of its minimum duration
 
 
 def relax(sim: Simulation, t_min: float, ridge: bool = False, progress=None, on_sample=None, rows=None):
@@ -253,8 +254,11 @@ def relax(sim: Simulation, t_min: float, ridge: bool = False, progress=None, on_
     ``t_min``. Returns the mean shape over the last quarter (a snapshot still carries the
     relaxation's leftover motion), whether it settled, and appends (t, kinetic energy, height,
     width, angle) per sample to ``rows`` (an interrupted run keeps them). ``on_sample(sim, k)``
-    is called after sample k."""
+    is called after sample k. With ``sim.params.anneal`` > 0 the relaxation is annealed: thermal
+    kicks of that rms speed, falling linearly to none at :data:`ANNEAL_FRACTION` ``t_min``, so
+    the averaged last quarter is free of them (decisions #59)."""
     rows = [] if rows is None else rows
+    sim.anneal_end = ANNEAL_FRACTION * t_min if sim.params.anneal > 0 else 0.0
     shapes, window = [], SAMPLES // 4
     interval = t_min / SAMPLES
     settled = False

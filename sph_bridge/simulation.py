@@ -10,6 +10,9 @@ One step, from positions r, velocities v and accelerations a at t:
    with their own reference density (digest §2.9a, the consistent reading).
 4. Wall velocities extrapolated from v_bar (Eq. 25); accelerations from v_bar (Eq. 11).
 5. v = v_half + dt/2 a (Eq. 29d); the next dt from Eqs. 30-32.
+
+Static cases relax with a velocity damping (decisions #33), annealed with thermal kicks
+against it where asked (decisions #59); neither is part of seed 000's dynamics.
 """
 
 from __future__ import annotations
@@ -44,6 +47,8 @@ class SphParameters:
     gravity: tuple = (0.0, 0.0, -GRAVITY)
     p0: float = 0.0  # EOS background pressure (not given in the paper)
     damping: float = 0.0  # [1/s] fluid velocities decay as exp(-damping t): relaxation of static cases only
+    anneal: float = 0.0  # [m/s] starting thermal speed of an annealed relaxation (droplet.relax; decisions #59)
+    seed: int = 0  # of the annealing's random kicks
 
     @property
     def h(self) -> float:
@@ -80,6 +85,8 @@ class Simulation:
         reach = int(math.ceil(INTERACTION_RANGE)) if (p.s_ff or p.s_sf) else 1
         self.grid = CellGrid(lo, hi, periodic, self.h, reach=reach)
         self.t = 0.0
+        self.anneal_end = 0.0  # [s] the annealing's kicks fall linearly from params.anneal to 0 at this time
+        self.rng = np.random.default_rng(p.seed)
         self.record = StepRecord()
         self.wall_start = time.perf_counter()
         self.number_density = np.zeros(n)
@@ -144,10 +151,23 @@ class Simulation:
         self.vel[f] += 0.5 * dt * self.acc[f]
         if self.params.damping:
             self.vel[f] *= math.exp(-self.params.damping * dt)
+            if self.t < self.anneal_end:
+                self._thermal_kicks(dt, self.params.anneal * (1.0 - self.t / self.anneal_end))
         self.t += dt
         self.record.steps += 1
         self.record.bounced += bounced
         self.dt = self.stable_step()
+
+    def _thermal_kicks(self, dt: float, speed: float) -> None:
+        """Langevin kicks with the damping as friction (an Ornstein-Uhlenbeck step): alone they drive
+        each fluid velocity component to a Gaussian of rms ``speed``, the fluctuation the damping
+        dissipates. Their mean is taken out, so they carry no momentum (fluid masses are equal).
+        An annealed relaxation lets contact lines cross the barriers a damped one stops at
+        (decisions #59)."""
+        f = self.fluid
+        kicks = self.rng.standard_normal((int(f.sum()), 3))
+        kicks -= kicks.mean(axis=0)
+        self.vel[f] += speed * math.sqrt(1.0 - math.exp(-2.0 * self.params.damping * dt)) * kicks
 
     def _wrap(self):
         g = self.grid

@@ -198,7 +198,9 @@ def test_droplet_bad_input_is_one_line(tmp_path):
                        (["droplet", "--theta", "40"], "--theta"), (["droplet", "--s-ff", "1e-6"], "--s-sf"),
                        (["calibrate", "--dx", "0"], "--dx"), (["droplet", "--gravity", "-1"], "--gravity"),
                        (["calibrate", "--ridge-sizes", "5"], "--ridge-sizes"),
-                       (["droplet", "--start-height", "1e-3"], "--start-height")):
+                       (["droplet", "--start-height", "1e-3"], "--start-height"),
+                       (["droplet", "--anneal", "-0.1"], "--anneal"), (["calibrate", "--anneal", "-1"], "--anneal"),
+                       (["droplet", "--anneal", "0.1"], "--anneal")):
         bad = tmp_path / "bad"
         proc = subprocess.run(cmd + args + ["--out", str(bad)], capture_output=True, text=True)
         lines = proc.stderr.strip().splitlines()

@@ -218,6 +218,27 @@ def test_verlet_steps_conserve_momentum_in_a_periodic_fluid():
     assert np.abs(sim.acc).max() > 1.0  # the forces are not trivially zero
 
 
+def test_annealing_kicks_reach_their_thermal_speed_and_carry_no_momentum():
+    # decisions #59: with the damping gamma as friction the kicks are an Ornstein-Uhlenbeck step,
+    # so each velocity component of a free particle settles to a Gaussian of rms u, whatever
+    # gamma dt; their mean is taken out each step, so the total momentum stays 0 to round-off.
+    # 1,000 particles 4h apart (no SPH neighbours; they wander ~0.3h), 3,000 components: the
+    # sample rms scatters by ~1.3 %, the bound is 5 %
+    from sph_bridge.simulation import Simulation, SphParameters
+
+    dx, n, u = 5e-4, 10, 0.15
+    params = SphParameters(dx=dx, c0=1.5, gravity=(0.0, 0.0, 0.0), damping=5000.0, anneal=u, seed=3)
+    spacing = 4.0 * params.h
+    fluid = np.stack(np.meshgrid(*[np.arange(n) * spacing] * 3, indexing="ij"), -1).reshape(-1, 3)
+    sim = Simulation(fluid, np.zeros((0, 3)), params, [0, 0, 0], [n * spacing] * 3, (True, True, True))
+    sim.anneal_end = math.inf  # hold the kicks at full strength
+    for _ in range(100):  # gamma dt = 0.47: 47 relaxation times
+        sim.step()
+    assert np.abs(sim.acc).max() == 0.0  # the particles are free
+    assert np.sqrt((sim.vel**2).mean()) == pytest.approx(u, rel=0.05)
+    assert np.abs(sim.vel.sum(axis=0)).max() < 1e-12 * np.abs(sim.vel).sum()
+
+
 def test_closed_hydrostatic_column():
     # Issue 5 / digest §7 #5: water between two 3-layer walls (periodic sideways, dx = 1 mm,
     # 16 layers, c0 with rho g H = 1 % of rho c0^2), relaxed with velocity damping at twice the
