@@ -51,7 +51,8 @@ SNAPSHOT_EVERY = 4  # samples between the droplet's ParaView frames
 
 
 ANNEAL_HELP = ("starting rms thermal speed [m/s] of an annealed relaxation: Langevin kicks against the "
-               "damping, falling to none by half its minimum duration (0: damping alone)")
+               "damping, falling to none by twice its minimum duration, then damping alone until it settles "
+               "(0: damping alone)")
 
 
 class _Parser(OneLineParser):

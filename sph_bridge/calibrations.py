@@ -23,12 +23,15 @@ class Calibrated:
 
 
 TABLE: dict[tuple[float, float], Calibrated] = {
-    # 3 slab + 3 ridge trials, 1,265 s on one thread (2026-11-23; fluid's own pressure unclamped
-    # at walls, decisions #37: s_sf 7.805e-7 N against 7.800e-7 N with the clamp)
+    # annealed (decisions #59, #60): the slab stage of the 2026-11-23 run (3 slab trials; the
+    # kicks do not enter it) and s_sf from one annealed ridge trial, -3.55 % on that run's
+    # damped 7.805e-7 N (65.83°) by Young's slope at its annealed 61.5° reading; the 10 dx ridge
+    # reads 65.38° at it under the shipped protocol (8,600 steps, 1,685 s on one thread, 2026-11-26)
     (5e-4, 65.16): Calibrated(c0=1.5, rho0_fluid=947.3625079573594, s_ff=9.684422412515069e-07,
-                              s_sf=7.805148181602049e-07, surface_tension=0.0721418907396849,
-                              contact_angle_deg=65.82919900957322,
-                              command="python -m sph_bridge calibrate --dx 5e-4 --theta 65.16"),
+                              s_sf=7.528e-07, surface_tension=0.0721418907396849,
+                              contact_angle_deg=65.376,
+                              command="python -m sph_bridge calibrate --dx 5e-4 --theta 65.16 --anneal 0.3",
+                              anneal=0.3),
     # 4 slab + 2 ridge trials, 1,225 s on one thread (2026-11-23; fluid's own pressure unclamped at walls)
     (2e-4, 65.16): Calibrated(c0=2.5, rho0_fluid=952.8763782154906, s_ff=3.9175943575769424e-07,
                               s_sf=3.0544625421520533e-07, surface_tension=0.07181378860749167,

@@ -244,7 +244,7 @@ def relaxation(params: SphParameters, surface_tension: float, size: float) -> tu
 SAMPLES = 40  # shape samples per minimum relaxation; the last quarter of them is averaged
 SETTLED = 0.005  # the mean height of the last quarter moved less than this (relative) from the one before
 MAX_EXTENSION = 4  # a relaxation ends by this many times its minimum duration, settled or not
-ANNEAL_FRACTION = 0.5  # an annealed relaxation's kicks end at this fraction of its minimum duration
+ANNEAL_FRACTION = 2.0  # an annealed relaxation's kicks end at this multiple of its minimum duration
 
 
 def relax(sim: Simulation, t_min: float, ridge: bool = False, progress=None, on_sample=None, rows=None):
@@ -255,20 +255,23 @@ def relax(sim: Simulation, t_min: float, ridge: bool = False, progress=None, on_
     relaxation's leftover motion), whether it settled, and appends (t, kinetic energy, height,
     width, angle) per sample to ``rows`` (an interrupted run keeps them). ``on_sample(sim, k)``
     is called after sample k. With ``sim.params.anneal`` > 0 the relaxation is annealed: thermal
-    kicks of that rms speed, falling linearly to none at :data:`ANNEAL_FRACTION` ``t_min``, so
-    the averaged last quarter is free of them (decisions #59)."""
+    kicks of that rms speed, falling linearly to none at :data:`ANNEAL_FRACTION` ``t_min`` (long
+    enough for a puddle to finish spreading under them), and the settle check compares two
+    quarters after they end (decisions #59, #60)."""
     rows = [] if rows is None else rows
     sim.anneal_end = ANNEAL_FRACTION * t_min if sim.params.anneal > 0 else 0.0
     shapes, window = [], SAMPLES // 4
     interval = t_min / SAMPLES
     settled = False
+    # both quarters compared lie after the kicks: a shape still moving under them is not settled
+    first_check = max(SAMPLES, math.ceil(sim.anneal_end / interval - 1e-9) + 2 * window)
     for k in range(1, MAX_EXTENSION * SAMPLES + 1):
         sim.run(interval * k, record_every=math.inf, progress=progress)
         shapes.append(measure(sim, ridge))
         rows.append((sim.t, sim.state_row()[2], shapes[-1].height, shapes[-1].width, shapes[-1].contact_angle_deg))
         if on_sample is not None:
             on_sample(sim, k)
-        if k >= SAMPLES and k % window == 0:
+        if k >= first_check and k % window == 0:
             last = np.mean([s.height for s in shapes[-window:]])
             before = np.mean([s.height for s in shapes[-2 * window:-window]])
             if abs(last / before - 1.0) < SETTLED:
