@@ -66,18 +66,25 @@ def atomic_run_directory(final: Path):
     os.replace(tmp, final)
 
 
-def write_text_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary sibling file and a rename: a reader (or a
-    kill) sees the old content or the new, never a part."""
+@contextmanager
+def replaced_atomically(path: Path):
+    """Yield a temporary sibling of ``path`` (same suffix) to write; rename it onto ``path`` when
+    the block completes: a reader (or a kill) sees the old content or the new, never a part."""
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
     try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
+        yield Path(tmp)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def write_text_atomic(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through :func:`replaced_atomically`."""
+    with replaced_atomically(path) as tmp:
+        tmp.write_text(text)
 
 
 def write_json(path: Path, data: dict, default=None) -> None:

@@ -3,7 +3,7 @@ with run directories; ``python -m sph_bridge lga ...``: the FHP-II lattice-gas s
 (:mod:`sph_bridge.lga.cli`).
 
     python -m sph_bridge droplet     [--dx M] [--theta DEG] [--volume M3] [--gravity G] [--ridge] [--start-height M]
-                                     [--anneal U] [--seed N] [--out DIR]
+                                     [--anneal U] [--seed N] [--checkpoint DIR] [--out DIR]
     python -m sph_bridge calibrate   [--dx M] [--theta DEG] [--surface-tension N/M] [--ridge-sizes N ...] [--anneal U]
                                      [--out DIR]
     python -m sph_bridge hydrostatic [--dx M] [--layers N] [--gravity G] [--out DIR]
@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 import sys
 import time
 from dataclasses import asdict
@@ -35,7 +36,7 @@ from hmdem.cli import (InputError, OneLineParser, dispatch, int_at_least, new_ru
                        number_in, positive_number)
 from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_toml
 
-from . import calibrations, cases, droplet
+from . import calibrations, cases, checkpoint, droplet
 from .calibrate import DROP_RADIUS_CELLS, MIN_RIDGE_CELLS
 from .interrupts import exit_status, interrupted
 from .output import particle_state, write_collection, write_particles
@@ -90,6 +91,10 @@ def build_parser() -> OneLineParser:
     p.add_argument("--anneal", type=non_negative_number,
                    help=ANNEAL_HELP + " (default: the calibration's, 0 for the shipped ones and --s-ff/--s-sf)")
     p.add_argument("--seed", type=int_at_least(0), default=0, help="seed of the annealing's kicks (default 0)")
+    p.add_argument("--checkpoint", type=Path, metavar="DIR",
+                   help="save the relaxation in DIR after every shape sample; the same command run again "
+                        "goes on from there (a long run killed or cut by its batch slot), to the result of a "
+                        "straight run")
     text = "find s_ff for a surface tension (free slab) and s_sf for a contact angle (zero-gravity drop)"
     p = sub.add_parser("calibrate", help=text, description=text)
     p.add_argument("--dx", type=positive_number, default=DEFAULT_DX, help=f"particle spacing [m] (default {DEFAULT_DX})")
@@ -261,19 +266,39 @@ def run_droplet(args) -> int:
     if args.start_height is not None and args.start_height < MIN_START_LAYERS * args.dx:
         raise InputError(f"--start-height: {args.start_height:g} m is under {MIN_START_LAYERS} particle layers at "
                          f"dx = {args.dx:g} m; at least {MIN_START_LAYERS * args.dx:g} m is allowed")
+    if args.checkpoint is not None and args.checkpoint.exists() and not args.checkpoint.is_dir():
+        raise InputError(f"--checkpoint: {str(args.checkpoint)!r} is a file; give a directory (new or a checkpoint's)")
     params, sigma, source = droplet_parameters(args)
     out = new_run_directory(args.out, args.command)
     sim, t_min = droplet.prepare_drop(params, args.volume, sigma, args.ridge, args.start_height)
     start_top = float(sim.pos[sim.fluid, 2].max()) + args.dx / 2  # the starting drop's surface
+    shapes, rows, frames = [], [], []  # frames: (t, particle state or the checkpoint's .vtu of it)
+    key = json.dumps({"parameters": asdict(params), "volume_m3": args.volume, "ridge": args.ridge,
+                      "start_height_m": args.start_height}, sort_keys=True)
+    if args.checkpoint is not None:
+        try:
+            restored = checkpoint.restore(args.checkpoint, key, sim)
+        except checkpoint.CheckpointMismatch as exc:
+            raise InputError(f"--checkpoint: {exc}") from None
+        if restored is not None:
+            shapes, rows, frame_times = restored
+            frames = [(t, checkpoint.frame_path(args.checkpoint, k)) for k, t in enumerate(frame_times)]
+            print(f"droplet: resuming {str(args.checkpoint)!r} at t = {sim.t:.5g} s after {len(shapes)} shape "
+                  f"samples ({sim.record.steps} steps)", file=sys.stderr)
     bar, advance = progress_bar(args, t_min)
-    frames, rows, status, settled = [], [], "finished", False
+    status, settled = "finished", False
 
-    def snapshot(s, k):
+    def on_sample(s, k):
         if k % SNAPSHOT_EVERY == 0 or k == 1:
             frames.append((s.t, particle_state(s)))
+            if args.checkpoint is not None:  # kept beside the state, not in memory
+                frames[-1] = (s.t, checkpoint.save_frame(args.checkpoint, len(frames) - 1, frames[-1][1]))
+        if args.checkpoint is not None:
+            checkpoint.save(args.checkpoint, key, s, shapes, rows, [t for t, _ in frames])
 
     try:
-        shape, settled = droplet.relax(sim, t_min, args.ridge, progress=advance, on_sample=snapshot, rows=rows)
+        shape, settled = droplet.relax(sim, t_min, args.ridge, progress=advance, on_sample=on_sample, rows=rows,
+                                       shapes=shapes)
     except (KeyboardInterrupt, SystemError) as exc:
         if not interrupted(exc):
             raise
@@ -344,11 +369,15 @@ def droplet_summary(args, sim, shape, sigma, source, status) -> dict:
 
 
 def write_frames(tmp: Path, sim, frames) -> None:
-    """particles_NNNN.vtu per frame and particles.pvd listing them; the final state as particles.vtu."""
+    """particles_NNNN.vtu per frame (a state, or a checkpoint's file of it) and particles.pvd listing them; the
+    final state as particles.vtu."""
     names = []
     for k, (t, state) in enumerate(frames):
         names.append((t, f"particles_{k:04d}.vtu"))
-        write_particles(tmp / names[-1][1], state)
+        if isinstance(state, Path):  # a frame a checkpoint holds
+            shutil.copyfile(state, tmp / names[-1][1])
+        else:
+            write_particles(tmp / names[-1][1], state)
     write_collection(tmp / "particles.pvd", names)
     write_particles(tmp / "particles.vtu", particle_state(sim))
 

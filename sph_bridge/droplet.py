@@ -242,12 +242,14 @@ def relaxation(params: SphParameters, surface_tension: float, size: float) -> tu
 
 
 SAMPLES = 40  # shape samples per minimum relaxation; the last quarter of them is averaged
+SETTLE_WINDOW = SAMPLES // 4  # samples in a quarter
 SETTLED = 0.005  # the mean height of the last quarter moved less than this (relative) from the one before
 MAX_EXTENSION = 4  # a relaxation ends by this many times its minimum duration, settled or not
 ANNEAL_FRACTION = 2.0  # an annealed relaxation's kicks end at this multiple of its minimum duration
 
 
-def relax(sim: Simulation, t_min: float, ridge: bool = False, progress=None, on_sample=None, rows=None):
+def relax(sim: Simulation, t_min: float, ridge: bool = False, progress=None, on_sample=None, rows=None,
+          shapes=None):
     """Run for at least ``t_min`` measuring the shape every ``t_min`` / :data:`SAMPLES`, until the
     mean height over the last quarter of that time has moved by less than :data:`SETTLED` from
     the quarter before (a puddle spreads for longer than a cap), at most :data:`MAX_EXTENSION`
@@ -257,27 +259,35 @@ def relax(sim: Simulation, t_min: float, ridge: bool = False, progress=None, on_
     is called after sample k. With ``sim.params.anneal`` > 0 the relaxation is annealed: thermal
     kicks of that rms speed, falling linearly to none at :data:`ANNEAL_FRACTION` ``t_min`` (long
     enough for a puddle to finish spreading under them), and the settle check compares two
-    quarters after they end (decisions #59, #60)."""
+    quarters after they end (decisions #59, #60). ``shapes``: the samples taken so far, for a
+    relaxation resumed from a checkpoint (:mod:`sph_bridge.checkpoint`) with ``sim`` restored to
+    the last of them; whether it goes on depends on them alone, so a resumed run ends where a
+    straight one does."""
     rows = [] if rows is None else rows
+    shapes = [] if shapes is None else shapes
     sim.anneal_end = ANNEAL_FRACTION * t_min if sim.params.anneal > 0 else 0.0
-    shapes, window = [], SAMPLES // 4
     interval = t_min / SAMPLES
-    settled = False
     # both quarters compared lie after the kicks: a shape still moving under them is not settled
-    first_check = max(SAMPLES, math.ceil(sim.anneal_end / interval - 1e-9) + 2 * window)
-    for k in range(1, MAX_EXTENSION * SAMPLES + 1):
+    first_check = max(SAMPLES, math.ceil(sim.anneal_end / interval - 1e-9) + 2 * SETTLE_WINDOW)
+    while not settled(shapes, first_check) and len(shapes) < MAX_EXTENSION * SAMPLES:
+        k = len(shapes) + 1
         sim.run(interval * k, record_every=math.inf, progress=progress)
         shapes.append(measure(sim, ridge))
         rows.append((sim.t, sim.state_row()[2], shapes[-1].height, shapes[-1].width, shapes[-1].contact_angle_deg))
         if on_sample is not None:
             on_sample(sim, k)
-        if k >= first_check and k % window == 0:
-            last = np.mean([s.height for s in shapes[-window:]])
-            before = np.mean([s.height for s in shapes[-2 * window:-window]])
-            if abs(last / before - 1.0) < SETTLED:
-                settled = True
-                break
-    return average(shapes[-window:]), settled
+    return average(shapes[-SETTLE_WINDOW:]), settled(shapes, first_check)
+
+
+def settled(shapes: list[DropShape], first_check: int) -> bool:
+    """At a whole window from ``first_check`` samples on, the mean height of the last
+    :data:`SETTLE_WINDOW` samples within :data:`SETTLED` of the window before."""
+    k = len(shapes)
+    if k < first_check or k % SETTLE_WINDOW:
+        return False
+    last = np.mean([s.height for s in shapes[-SETTLE_WINDOW:]])
+    before = np.mean([s.height for s in shapes[-2 * SETTLE_WINDOW:-SETTLE_WINDOW]])
+    return bool(abs(last / before - 1.0) < SETTLED)
 
 
 def prepare_drop(params: SphParameters, volume: float, surface_tension: float, ridge: bool = False,

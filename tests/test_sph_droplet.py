@@ -209,6 +209,59 @@ def test_an_annealed_relaxation_settles_only_after_its_kicks(monkeypatch):
         assert sim.anneal_end == (droplet.ANNEAL_FRACTION * t_min if anneal else 0.0)
 
 
+def test_a_killed_droplet_goes_on_from_its_checkpoint_to_the_straight_runs_result(monkeypatch, tmp_path):
+    # droplet --checkpoint DIR: a run stopped after 3 of its shape samples and given the same
+    # command again ends, bit for bit, where a run that was never stopped does: the same samples,
+    # steps, final particles and annealing kicks (a short annealed relaxation of a coarse drop;
+    # the shortened protocol only makes it quick)
+    import signal
+
+    import meshio
+
+    from sph_bridge import __main__ as cli
+
+    monkeypatch.setattr(signal, "signal", lambda *args: None)  # the CLI's SIGTERM handler stays out of pytest
+    monkeypatch.setattr(droplet, "SAMPLES", 8)
+    monkeypatch.setattr(droplet, "SETTLE_WINDOW", 2)
+    monkeypatch.setattr(droplet, "MAX_EXTENSION", 1)
+    short = droplet.relaxation
+    monkeypatch.setattr(droplet, "relaxation", lambda *a: (short(*a)[0], 4e-3))
+    args = ["droplet", "--dx", "1e-3", "--volume", "6e-7", "--gravity", "0", "--s-ff", "4e-6", "--s-sf", "3e-6",
+            "--c0", "3", "--anneal", "0.2", "--seed", "7", "--quiet"]
+
+    def run(name, *extra):
+        return cli.main(args + ["--out", str(tmp_path / name), *extra])
+
+    measure, calls = droplet.measure, []
+
+    def stop_at_the_fourth_sample(sim, ridge):
+        calls.append(sim.t)
+        if len(calls) == 4:
+            raise KeyboardInterrupt
+        return measure(sim, ridge)
+
+    assert run("straight") == 0
+    monkeypatch.setattr(droplet, "measure", stop_at_the_fourth_sample)
+    assert run("stopped", "--checkpoint", str(tmp_path / "ck")) == 130
+    monkeypatch.setattr(droplet, "measure", measure)
+    assert run("resumed", "--checkpoint", str(tmp_path / "ck")) == 0
+    straight, stopped, resumed = (json.loads((tmp_path / n / "summary.json").read_text())
+                                  for n in ("straight", "stopped", "resumed"))
+    assert stopped["status"] == "interrupted" and 0 < stopped["steps"] < straight["steps"]
+    for k in ("steps", "simulated_time_s", "height_m", "width_m", "contact_angle_deg", "final_kinetic_energy_j",
+              "settled"):
+        assert resumed[k] == straight[k], k
+    assert (tmp_path / "resumed" / "timeseries.csv").read_text() == (tmp_path / "straight" / "timeseries.csv").read_text()
+    ends = [meshio.read(tmp_path / n / "particles.vtu").points for n in ("straight", "resumed")]
+    assert np.array_equal(*ends)
+    frames = [sorted(p.name for p in (tmp_path / n).glob("particles_*.vtu")) for n in ("straight", "resumed")]
+    assert frames[0] == frames[1] and len(frames[0]) >= 2
+    # the checkpoint belongs to its drop: another volume is refused, nothing written
+    assert cli.main(args[:4] + ["7e-7"] + args[5:] + ["--out", str(tmp_path / "other"), "--checkpoint",
+                                                       str(tmp_path / "ck")]) == 2
+    assert not (tmp_path / "other").exists()
+
+
 def test_droplet_bad_input_is_one_line(tmp_path):
     cmd = [sys.executable, "-m", "sph_bridge"]
     for args, name in ((["droplet", "--theta", "190"], "--theta"), (["droplet", "--volume", "1e-9"], "--volume"),
