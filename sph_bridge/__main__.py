@@ -285,7 +285,8 @@ def run_droplet(args) -> int:
             frames = [(t, checkpoint.frame_path(args.checkpoint, k)) for k, t in enumerate(frame_times)]
             print(f"droplet: resuming {str(args.checkpoint)!r} at t = {sim.t:.5g} s after {len(shapes)} shape "
                   f"samples ({sim.record.steps} steps)", file=sys.stderr)
-    bar, advance = progress_bar(args, t_min)
+    # the bar runs to the shortest relaxation; one that has not settled by then runs on past it
+    bar, advance = progress_bar(args, droplet.minimum_samples(params.anneal > 0) * t_min / droplet.SAMPLES)
     status, settled = "finished", False
 
     def on_sample(s, k):

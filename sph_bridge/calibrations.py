@@ -32,11 +32,14 @@ TABLE: dict[tuple[float, float], Calibrated] = {
                               contact_angle_deg=65.376,
                               command="python -m sph_bridge calibrate --dx 5e-4 --theta 65.16 --anneal 0.3",
                               anneal=0.3),
-    # 4 slab + 2 ridge trials, 1,225 s on one thread (2026-11-23; fluid's own pressure unclamped at walls)
+    # annealed (decisions #61): the slab stage of the 2026-11-23 run (4 slab trials) and s_sf from
+    # three annealed 10 dx ridge trials as stage 2 runs them (2.946e-7 N -> 66.98°, 3.003e-7 ->
+    # 65.87°, secant 3.0389e-7 -> 64.69°, 9,100 steps, 1,792 s on one thread beside another run), 2026-11-26
     (2e-4, 65.16): Calibrated(c0=2.5, rho0_fluid=952.8763782154906, s_ff=3.9175943575769424e-07,
-                              s_sf=3.0544625421520533e-07, surface_tension=0.07181378860749167,
-                              contact_angle_deg=65.53213384487296,
-                              command="python -m sph_bridge calibrate --dx 2e-4 --theta 65.16"),
+                              s_sf=3.0389e-07, surface_tension=0.07181378860749167,
+                              contact_angle_deg=64.686,
+                              command="python -m sph_bridge calibrate --dx 2e-4 --theta 65.16 --anneal 0.3",
+                              anneal=0.3),
 }
 
 

@@ -267,8 +267,7 @@ def relax(sim: Simulation, t_min: float, ridge: bool = False, progress=None, on_
     shapes = [] if shapes is None else shapes
     sim.anneal_end = ANNEAL_FRACTION * t_min if sim.params.anneal > 0 else 0.0
     interval = t_min / SAMPLES
-    # both quarters compared lie after the kicks: a shape still moving under them is not settled
-    first_check = max(SAMPLES, math.ceil(sim.anneal_end / interval - 1e-9) + 2 * SETTLE_WINDOW)
+    first_check = minimum_samples(sim.params.anneal > 0)
     while not settled(shapes, first_check) and len(shapes) < MAX_EXTENSION * SAMPLES:
         k = len(shapes) + 1
         sim.run(interval * k, record_every=math.inf, progress=progress)
@@ -277,6 +276,13 @@ def relax(sim: Simulation, t_min: float, ridge: bool = False, progress=None, on_
         if on_sample is not None:
             on_sample(sim, k)
     return average(shapes[-SETTLE_WINDOW:]), settled(shapes, first_check)
+
+
+def minimum_samples(annealed: bool) -> int:
+    """Samples (of t_min / :data:`SAMPLES`) before a relaxation may stop: t_min, or for an annealed
+    one two windows after its kicks end (both quarters compared lie after the kicks: a shape
+    still moving under them is not settled)."""
+    return max(SAMPLES, math.ceil(ANNEAL_FRACTION * SAMPLES - 1e-9) * annealed + 2 * SETTLE_WINDOW)
 
 
 def settled(shapes: list[DropShape], first_check: int) -> bool:
