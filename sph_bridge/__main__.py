@@ -93,8 +93,8 @@ def build_parser() -> OneLineParser:
     p.add_argument("--seed", type=int_at_least(0), default=0, help="seed of the annealing's kicks (default 0)")
     p.add_argument("--checkpoint", type=Path, metavar="DIR",
                    help="save the relaxation in DIR after every shape sample; the same command run again "
-                        "goes on from there (a long run killed or cut by its batch slot), to the result of a "
-                        "straight run")
+                        "with a new --out goes on from there (a long run killed or cut by its batch slot), to "
+                        "the result of a straight run")
     text = "find s_ff for a surface tension (free slab) and s_sf for a contact angle (zero-gravity drop)"
     p = sub.add_parser("calibrate", help=text, description=text)
     p.add_argument("--dx", type=positive_number, default=DEFAULT_DX, help=f"particle spacing [m] (default {DEFAULT_DX})")
@@ -266,19 +266,18 @@ def run_droplet(args) -> int:
     if args.start_height is not None and args.start_height < MIN_START_LAYERS * args.dx:
         raise InputError(f"--start-height: {args.start_height:g} m is under {MIN_START_LAYERS} particle layers at "
                          f"dx = {args.dx:g} m; at least {MIN_START_LAYERS * args.dx:g} m is allowed")
-    if args.checkpoint is not None and args.checkpoint.exists() and not args.checkpoint.is_dir():
-        raise InputError(f"--checkpoint: {str(args.checkpoint)!r} is a file; give a directory (new or a checkpoint's)")
     params, sigma, source = droplet_parameters(args)
     out = new_run_directory(args.out, args.command)
     sim, t_min = droplet.prepare_drop(params, args.volume, sigma, args.ridge, args.start_height)
     start_top = float(sim.pos[sim.fluid, 2].max()) + args.dx / 2  # the starting drop's surface
     shapes, rows, frames = [], [], []  # frames: (t, particle state or the checkpoint's .vtu of it)
-    key = json.dumps({"parameters": asdict(params), "volume_m3": args.volume, "ridge": args.ridge,
-                      "start_height_m": args.start_height}, sort_keys=True)
+    key = checkpoint.key(sim, t_min, args.volume, args.ridge, args.start_height)
     if args.checkpoint is not None:
         try:
+            checkpoint.check_directory(args.checkpoint, out)
             restored = checkpoint.restore(args.checkpoint, key, sim)
-        except checkpoint.CheckpointMismatch as exc:
+            args.checkpoint.mkdir(parents=True, exist_ok=True)
+        except (checkpoint.CheckpointError, OSError) as exc:
             raise InputError(f"--checkpoint: {exc}") from None
         if restored is not None:
             shapes, rows, frame_times = restored

@@ -1,37 +1,63 @@
 """Checkpoints of a droplet relaxation (``droplet --checkpoint DIR``): a run that was killed,
 stopped or ran out of its batch slot goes on from its last shape sample when the same command
-is given again, and ends where a straight run would (the particles, the step, the random
-stream of the annealing kicks and the samples taken are restored exactly).
+is given again (with a new ``--out``), and ends where a straight run would (the particles, the
+step, the random stream of the annealing kicks and the samples taken are restored exactly).
 
 ``DIR/state.npz`` is replaced atomically after every sample; the ParaView frames taken so far
-sit beside it as ``particles_NNNN.vtu``. A checkpoint belongs to one drop: its parameters and
-geometry are stored as ``key`` and a command with others is refused.
+sit beside it as ``particles_NNNN.vtu``. A checkpoint belongs to one drop and one relaxation
+protocol: its :func:`key` is stored and a command with another is refused.
 """
 
 from __future__ import annotations
 
 import json
 import time
-from dataclasses import astuple
+import zipfile
+from dataclasses import asdict, astuple, fields
 from pathlib import Path
 
 import numpy as np
 
 from hmdem.rundir import replaced_atomically
 
+from . import droplet
 from .droplet import DropShape
 from .output import write_particles
 from .simulation import Simulation
 
 STATE = "state.npz"
-ARRAYS = ("pos", "vel", "acc", "rho", "pressure", "number_density")  # what the next step reads
+# the next step reads pos, vel, acc and dt; the summary, the shape reading and the frames the rest
+ARRAYS = ("pos", "vel", "acc", "rho", "pressure", "number_density")
 
 
-class CheckpointMismatch(ValueError):
-    """The checkpoint directory holds a relaxation of another drop or another size."""
+class CheckpointError(ValueError):
+    """The directory is not a checkpoint of this drop's relaxation."""
+
+
+def key(sim: Simulation, t_min: float, volume: float, ridge: bool, start_height: float | None) -> str:
+    """What a checkpoint must match: the drop's parameters (damping included), its volume and
+    geometry, its minimum relaxation and the relaxation protocol's constants (a code change
+    between the pieces of a run would otherwise mix two protocols)."""
+    protocol = {name: getattr(droplet, name) for name in ("SAMPLES", "SETTLE_WINDOW", "SETTLED", "MAX_EXTENSION",
+                                                         "ANNEAL_FRACTION")}
+    return json.dumps({"parameters": asdict(sim.params), "volume_m3": volume, "ridge": ridge,
+                       "start_height_m": start_height, "t_min_s": t_min, "protocol": protocol}, sort_keys=True)
+
+
+def check_directory(directory: Path, out: Path) -> None:
+    """Refuse a directory that is neither new nor a checkpoint (its files would be overwritten),
+    or one at or inside the run directory (which is written whole at the end)."""
+    directory, out = Path(directory).resolve(), Path(out).resolve()
+    if directory == out or out in directory.parents:
+        raise CheckpointError(f"{str(directory)!r} lies in the run directory --out; give one outside it")
+    if directory.exists() and not directory.is_dir():
+        raise CheckpointError(f"{str(directory)!r} is a file; give a directory (new or a checkpoint's)")
+    if directory.is_dir() and any(directory.iterdir()) and not (directory / STATE).exists():
+        raise CheckpointError(f"{str(directory)!r} holds files but no {STATE}; give a new directory or a checkpoint's")
 
 
 def frame_path(directory: Path, index: int) -> Path:
+    """Where a checkpoint keeps frame ``index`` (the run directory's name for it)."""
     return Path(directory) / f"particles_{index:04d}.vtu"
 
 
@@ -55,7 +81,7 @@ def save(directory: Path, key: str, sim: Simulation, shapes: list[DropShape], ro
                  clock=np.array([sim.t, sim.dt, time.perf_counter() - sim.wall_start]),
                  counts=np.array([sim.record.steps, sim.record.bounced]),
                  rng=json.dumps(sim.rng.bit_generator.state),
-                 shapes=np.array([astuple(s) for s in shapes], float).reshape(-1, len(DropShape.__dataclass_fields__)),
+                 shapes=np.array([astuple(s) for s in shapes], float).reshape(-1, len(fields(DropShape))),
                  rows=np.array(rows, float).reshape(len(rows), -1),
                  frame_times=np.array(frame_times, float))
 
@@ -63,25 +89,30 @@ def save(directory: Path, key: str, sim: Simulation, shapes: list[DropShape], ro
 def restore(directory: Path, key: str, sim: Simulation):
     """Load ``DIR/state.npz`` into ``sim`` (built afresh for the same drop) and return the shape
     samples, rows and frame times taken so far; None when the directory holds no checkpoint.
-    Raises :class:`CheckpointMismatch` for a checkpoint of another drop."""
+    Raises :class:`CheckpointError` for a checkpoint of another drop or protocol, or one that
+    cannot be read."""
     path = Path(directory) / STATE
     if not path.exists():
         return None
-    with np.load(path) as data:
-        if str(data["key"]) != key:
-            raise CheckpointMismatch(f"{str(directory)!r} holds the relaxation of another drop (parameters, "
-                                     "volume or geometry); give the command it was started with or a new directory")
-        if len(data["pos"]) != len(sim.pos):
-            raise CheckpointMismatch(f"{str(directory)!r} holds {len(data['pos'])} particles, this drop "
-                                     f"{len(sim.pos)}")
-        for name in ARRAYS:
-            setattr(sim, name, data[name].copy())
-        sim.t, sim.dt, elapsed = (float(v) for v in data["clock"])
-        sim.record.steps, sim.record.bounced = (int(v) for v in data["counts"])
-        sim.rng.bit_generator.state = json.loads(str(data["rng"]))
-        shapes = [DropShape(*map(float, row)) for row in data["shapes"]]
-        rows = [tuple(map(float, row)) for row in data["rows"]]
-        frame_times = [float(t) for t in data["frame_times"]]
-    sim.wall_start = time.perf_counter() - elapsed  # the summary's wall time counts every piece
+    try:
+        with np.load(path) as data:
+            if str(data["key"]) != key:
+                raise CheckpointError(f"{str(directory)!r} holds the relaxation of another drop or protocol "
+                                      "(parameters, volume, geometry or code); give the command it was started "
+                                      "with or a new directory")
+            for name in ARRAYS:
+                setattr(sim, name, data[name].copy())
+            sim.t, sim.dt, elapsed = (float(v) for v in data["clock"])
+            sim.record.steps, sim.record.bounced = (int(v) for v in data["counts"])
+            sim.rng.bit_generator.state = json.loads(str(data["rng"]))
+            shapes = [DropShape(*map(float, row)) for row in data["shapes"]]
+            rows = [tuple(map(float, row)) for row in data["rows"]]
+            frame_times = [float(t) for t in data["frame_times"]]
+    except (OSError, KeyError, ValueError, zipfile.BadZipFile) as exc:
+        if isinstance(exc, CheckpointError):
+            raise
+        raise CheckpointError(f"{str(path)!r} cannot be read ({exc.__class__.__name__}: {exc})") from None
+    # the summary's wall time counts every piece up to its last checkpoint
+    sim.wall_start = time.perf_counter() - elapsed
     sim._bin()
     return shapes, rows, frame_times

@@ -268,24 +268,25 @@ def relax(sim: Simulation, t_min: float, ridge: bool = False, progress=None, on_
     sim.anneal_end = ANNEAL_FRACTION * t_min if sim.params.anneal > 0 else 0.0
     interval = t_min / SAMPLES
     first_check = minimum_samples(sim.params.anneal > 0)
-    while not settled(shapes, first_check) and len(shapes) < MAX_EXTENSION * SAMPLES:
+    while not has_settled(shapes, first_check) and len(shapes) < MAX_EXTENSION * SAMPLES:
         k = len(shapes) + 1
         sim.run(interval * k, record_every=math.inf, progress=progress)
         shapes.append(measure(sim, ridge))
         rows.append((sim.t, sim.state_row()[2], shapes[-1].height, shapes[-1].width, shapes[-1].contact_angle_deg))
         if on_sample is not None:
             on_sample(sim, k)
-    return average(shapes[-SETTLE_WINDOW:]), settled(shapes, first_check)
+    return average(shapes[-SETTLE_WINDOW:]), has_settled(shapes, first_check)
 
 
 def minimum_samples(annealed: bool) -> int:
     """Samples (of t_min / :data:`SAMPLES`) before a relaxation may stop: t_min, or for an annealed
     one two windows after its kicks end (both quarters compared lie after the kicks: a shape
     still moving under them is not settled)."""
-    return max(SAMPLES, math.ceil(ANNEAL_FRACTION * SAMPLES - 1e-9) * annealed + 2 * SETTLE_WINDOW)
+    kicks = math.ceil(ANNEAL_FRACTION * SAMPLES - 1e-9) if annealed else 0
+    return max(SAMPLES, kicks + 2 * SETTLE_WINDOW)
 
 
-def settled(shapes: list[DropShape], first_check: int) -> bool:
+def has_settled(shapes: list[DropShape], first_check: int) -> bool:
     """At a whole window from ``first_check`` samples on, the mean height of the last
     :data:`SETTLE_WINDOW` samples within :data:`SETTLED` of the window before."""
     k = len(shapes)

@@ -202,11 +202,12 @@ def test_an_annealed_relaxation_settles_only_after_its_kicks(monkeypatch):
         assert sim.anneal_end == (droplet.ANNEAL_FRACTION * t_min if anneal else 0.0)
 
 
-def test_a_killed_droplet_goes_on_from_its_checkpoint_to_the_straight_runs_result(monkeypatch, tmp_path):
+def test_a_killed_droplet_goes_on_from_its_checkpoint_to_the_straight_runs_result(monkeypatch, tmp_path, capsys):
     # droplet --checkpoint DIR: a run stopped after 3 of its shape samples and given the same
     # command again ends, bit for bit, where a run that was never stopped does: the same samples,
-    # steps, final particles and annealing kicks (a short annealed relaxation of a coarse drop;
-    # the shortened protocol only makes it quick)
+    # settle check, steps, final particles, frames and annealing kicks (a short annealed
+    # relaxation of a coarse drop whose kicks end at its 2nd sample and whose settle check runs
+    # from its 8th; the shortened protocol only makes it quick)
     import signal
 
     import meshio
@@ -214,45 +215,58 @@ def test_a_killed_droplet_goes_on_from_its_checkpoint_to_the_straight_runs_resul
     from sph_bridge import __main__ as cli
 
     monkeypatch.setattr(signal, "signal", lambda *args: None)  # the CLI's SIGTERM handler stays out of pytest
-    monkeypatch.setattr(droplet, "SAMPLES", 8)
-    monkeypatch.setattr(droplet, "SETTLE_WINDOW", 2)
-    monkeypatch.setattr(droplet, "MAX_EXTENSION", 1)
+    for name, value in (("SAMPLES", 8), ("SETTLE_WINDOW", 2), ("MAX_EXTENSION", 2), ("ANNEAL_FRACTION", 0.25)):
+        monkeypatch.setattr(droplet, name, value)
     short = droplet.relaxation
     monkeypatch.setattr(droplet, "relaxation", lambda *a: (short(*a)[0], 4e-3))
     args = ["droplet", "--dx", "1e-3", "--volume", "6e-7", "--gravity", "0", "--s-ff", "4e-6", "--s-sf", "3e-6",
             "--c0", "3", "--anneal", "0.2", "--seed", "7", "--quiet"]
+    ck = str(tmp_path / "ck")
 
     def run(name, *extra):
         return cli.main(args + ["--out", str(tmp_path / name), *extra])
 
     measure, calls = droplet.measure, []
 
-    def stop_at_the_fourth_sample(sim, ridge):
+    def counted(sim, ridge):
         calls.append(sim.t)
-        if len(calls) == 4:
+        if len(calls) == stop_at:
             raise KeyboardInterrupt
         return measure(sim, ridge)
 
+    monkeypatch.setattr(droplet, "measure", counted)
+    stop_at = 0
     assert run("straight") == 0
-    monkeypatch.setattr(droplet, "measure", stop_at_the_fourth_sample)
-    assert run("stopped", "--checkpoint", str(tmp_path / "ck")) == 130
-    monkeypatch.setattr(droplet, "measure", measure)
-    assert run("resumed", "--checkpoint", str(tmp_path / "ck")) == 0
-    straight, stopped, resumed = (json.loads((tmp_path / n / "summary.json").read_text())
-                                  for n in ("straight", "stopped", "resumed"))
-    assert stopped["status"] == "interrupted" and 0 < stopped["steps"] < straight["steps"]
-    for k in ("steps", "simulated_time_s", "height_m", "width_m", "contact_angle_deg", "final_kinetic_energy_j",
-              "settled"):
-        assert resumed[k] == straight[k], k
-    assert (tmp_path / "resumed" / "timeseries.csv").read_text() == (tmp_path / "straight" / "timeseries.csv").read_text()
-    ends = [meshio.read(tmp_path / n / "particles.vtu").points for n in ("straight", "resumed")]
-    assert np.array_equal(*ends)
-    frames = [sorted(p.name for p in (tmp_path / n).glob("particles_*.vtu")) for n in ("straight", "resumed")]
-    assert frames[0] == frames[1] and len(frames[0]) >= 2
-    # the checkpoint belongs to its drop: another volume is refused, nothing written
-    assert cli.main(args[:4] + ["7e-7"] + args[5:] + ["--out", str(tmp_path / "other"), "--checkpoint",
-                                                       str(tmp_path / "ck")]) == 2
-    assert not (tmp_path / "other").exists()
+    samples = len(calls)
+    assert samples > droplet.minimum_samples(True) == 8  # the settle check ran
+    calls.clear()
+    stop_at = 4
+    assert run("stopped", "--checkpoint", ck) == 130
+    calls.clear()
+    stop_at = 0
+    capsys.readouterr()
+    assert run("resumed", "--checkpoint", ck) == 0
+    assert "resuming" in capsys.readouterr().err and len(calls) == samples - 3  # from its 3rd sample on
+    calls.clear()
+    assert run("again", "--checkpoint", ck) == 0 and not calls  # a finished checkpoint: nothing left to run
+    summaries = {n: json.loads((tmp_path / n / "summary.json").read_text())
+                 for n in ("straight", "stopped", "resumed", "again")}
+    assert summaries["stopped"]["status"] == "interrupted"
+    assert 0 < summaries["stopped"]["steps"] < summaries["straight"]["steps"]
+    for n in ("resumed", "again"):
+        for k in ("steps", "simulated_time_s", "height_m", "width_m", "contact_angle_deg", "final_kinetic_energy_j",
+                  "settled"):
+            assert summaries[n][k] == summaries["straight"][k], (n, k)
+        assert (tmp_path / n / "timeseries.csv").read_text() == (tmp_path / "straight" / "timeseries.csv").read_text()
+        names = sorted(p.name for p in (tmp_path / n).glob("particles*.vtu"))
+        assert names == sorted(p.name for p in (tmp_path / "straight").glob("particles*.vtu")) and len(names) >= 3
+        for name in names:
+            assert np.array_equal(meshio.read(tmp_path / n / name).points, meshio.read(tmp_path / "straight" / name).points)
+    # a checkpoint belongs to its drop, and a directory of other files is no checkpoint: refused, nothing written
+    other = args[:4] + ["7e-7"] + args[5:]
+    for command, directory in ((other, ck), (args, str(tmp_path / "straight"))):
+        assert cli.main(command + ["--out", str(tmp_path / "other"), "--checkpoint", directory]) == 2
+        assert not (tmp_path / "other").exists()
 
 
 def test_droplet_bad_input_is_one_line(tmp_path):
