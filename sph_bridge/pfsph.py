@@ -3,6 +3,11 @@ pressure, viscous and pairwise interaction forces, gathered per particle over a 
 
 Every function loops over particles in parallel (numba ``prange``) and over the neighbour cells
 of :class:`sph_bridge.cells.CellGrid`; no pair list is stored, so memory stays linear in N.
+The loops read copies of the particle arrays in cell order (``a[order]``), so that a cell's
+particles are adjacent in memory: as a drop stirs, the particles' own order loses all relation
+to their place, and gathering through ``order`` cost the force sum 1.75x its time on the 2e-4 m
+puddle. A particle's neighbours are summed in the same order either way, so the sums are the
+same to the bit.
 Particles are fluid (``fluid`` True) or fixed wall particles. Pair terms are antisymmetric in
 (i, j), so with fluid only they conserve momentum to round-off (digest §7 #4).
 """
@@ -25,19 +30,19 @@ def density(pos, mass, h, cell, order, start, neighbours, shifts, inner):
     n = pos.shape[0]
     rho = np.empty(n)
     h2 = h * h
+    pos, mass = pos[order], mass[order]  # in cell order (module docstring); i and j index these copies
     for i in prange(n):
-        c = cell[i]
+        c = cell[order[i]]
         total = 0.0
         for k in range(inner):
             nc = neighbours[c, k]
             if nc < 0:
                 continue
-            for idx in range(start[nc], start[nc + 1]):
-                j = order[idx]
+            for j in range(start[nc], start[nc + 1]):
                 _, _, _, r2 = separation(pos, i, j, shifts[c, k])
                 if r2 < h2:
                     total += mass[j] * wendland(math.sqrt(r2), h)
-        rho[i] = total
+        rho[order[i]] = total
     return rho
 
 
@@ -91,17 +96,19 @@ def accelerations(pos, vel, mass, rho, pressure, viscosity, fluid, s_ff, s_sf, h
     acc = np.zeros((n, 3))
     cutoff2 = (INTERACTION_RANGE * h) ** 2
     h2 = h * h
+    # in cell order (module docstring); i and j below index these copies
+    pos, vel, mass, rho = pos[order], vel[order], mass[order], rho[order]
+    pressure, viscosity, fluid = pressure[order], viscosity[order], fluid[order]
     for i in prange(n):
         if not fluid[i]:
             continue
-        c = cell[i]
+        c = cell[order[i]]
         ax, ay, az = gravity[0], gravity[1], gravity[2]
         for k in range(neighbours.shape[1]):
             nc = neighbours[c, k]
             if nc < 0:
                 continue
-            for idx in range(start[nc], start[nc + 1]):
-                j = order[idx]
+            for j in range(start[nc], start[nc + 1]):
                 if j == i:
                     continue
                 dx, dy, dz, r2 = separation(pos, i, j, shifts[c, k])
@@ -118,5 +125,5 @@ def accelerations(pos, vel, mass, rho, pressure, viscosity, fluid, s_ff, s_sf, h
                 ax += f * dx
                 ay += f * dy
                 az += f * dz
-        acc[i, 0], acc[i, 1], acc[i, 2] = ax, ay, az
+        acc[order[i], 0], acc[order[i], 1], acc[order[i], 2] = ax, ay, az
     return acc

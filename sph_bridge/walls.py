@@ -32,17 +32,18 @@ def wall_state(pos, vel, pressure, rho, fluid, gravity, h, cell, order, start, n
     n = pos.shape[0]
     vel_out, p_out = vel.copy(), pressure.copy()
     h2 = h * h
+    # in cell order (sph_bridge.pfsph's docstring); i and j index these copies, vel_out and p_out do not
+    pos, vel, pressure, rho, fluid = pos[order], vel[order], pressure[order], rho[order], fluid[order]
     for i in prange(n):
         if fluid[i]:
             continue
-        c = cell[i]
+        c = cell[order[i]]
         wsum, vx, vy, vz, psum, head = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
         for k in range(inner):
             nc = neighbours[c, k]
             if nc < 0:
                 continue
-            for idx in range(start[nc], start[nc + 1]):
-                j = order[idx]
+            for j in range(start[nc], start[nc + 1]):
                 if not fluid[j]:
                     continue
                 dx, dy, dz, r2 = separation(pos, i, j, shifts[c, k])
@@ -54,12 +55,13 @@ def wall_state(pos, vel, pressure, rho, fluid, gravity, h, cell, order, start, n
                     vz += w * vel[j, 2]
                     psum += pressure[j] * w
                     head += rho[j] * (gravity[0] * dx + gravity[1] * dy + gravity[2] * dz) * w
+        w_i = order[i]
         if wsum > 0.0:
-            vel_out[i, 0], vel_out[i, 1], vel_out[i, 2] = -vx / wsum, -vy / wsum, -vz / wsum
-            p_out[i] = (psum + head) / wsum
+            vel_out[w_i, 0], vel_out[w_i, 1], vel_out[w_i, 2] = -vx / wsum, -vy / wsum, -vz / wsum
+            p_out[w_i] = (psum + head) / wsum
         else:
-            vel_out[i, 0], vel_out[i, 1], vel_out[i, 2] = 0.0, 0.0, 0.0
-            p_out[i] = 0.0
+            vel_out[w_i, 0], vel_out[w_i, 1], vel_out[w_i, 2] = 0.0, 0.0, 0.0
+            p_out[w_i] = 0.0
     return vel_out, p_out
 
 
@@ -80,17 +82,17 @@ def proximity(pos, fluid, h, bulk_number, cell, order, start, neighbours, shifts
     normal = np.zeros((n, 3))
     number = np.zeros(n)
     h2 = h * h
+    pos, fluid = pos[order], fluid[order]  # in cell order (sph_bridge.pfsph's docstring); i and j index these
     for i in prange(n):
         if not fluid[i]:
             continue
-        c = cell[i]
+        c = cell[order[i]]
         n_all, n_wall, gx, gy, gz = 0.0, 0.0, 0.0, 0.0, 0.0
         for k in range(inner):
             nc = neighbours[c, k]
             if nc < 0:
                 continue
-            for idx in range(start[nc], start[nc + 1]):
-                j = order[idx]
+            for j in range(start[nc], start[nc + 1]):
                 dx, dy, dz, r2 = separation(pos, i, j, shifts[c, k])
                 if r2 >= h2:
                     continue
@@ -104,11 +106,12 @@ def proximity(pos, fluid, h, bulk_number, cell, order, start, neighbours, shifts
                     gx -= g * dx
                     gy -= g * dy
                     gz -= g * dz
-        phi[i] = 1.0 - n_wall / bulk_number
-        number[i] = n_all
+        f_i = order[i]
+        phi[f_i] = 1.0 - n_wall / bulk_number
+        number[f_i] = n_all
         norm = math.sqrt(gx * gx + gy * gy + gz * gz)
         if norm > 0.0:
-            normal[i, 0], normal[i, 1], normal[i, 2] = gx / norm, gy / norm, gz / norm
+            normal[f_i, 0], normal[f_i, 1], normal[f_i, 2] = gx / norm, gy / norm, gz / norm
     return phi, normal, number
 
 
