@@ -271,8 +271,9 @@ def run_droplet(args) -> int:
     sim, t_min = droplet.prepare_drop(params, args.volume, sigma, args.ridge, args.start_height)
     start_top = float(sim.pos[sim.fluid, 2].max()) + args.dx / 2  # the starting drop's surface
     shapes, rows, frames = [], [], []  # frames: (t, particle state or the checkpoint's .vtu of it)
-    key = checkpoint.key(sim, t_min, args.volume, args.ridge, args.start_height)
+    key = None
     if args.checkpoint is not None:
+        key = checkpoint.key(sim, t_min, args.volume, args.ridge, args.start_height)
         try:
             checkpoint.check_directory(args.checkpoint, out)
             restored = checkpoint.restore(args.checkpoint, key, sim)
