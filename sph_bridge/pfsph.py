@@ -125,5 +125,6 @@ def accelerations(pos, vel, mass, rho, pressure, viscosity, fluid, s_ff, s_sf, h
                 ax += f * dx
                 ay += f * dy
                 az += f * dz
-        acc[order[i], 0], acc[order[i], 1], acc[order[i], 2] = ax, ay, az
+        own = order[i]  # i in the caller's arrays
+        acc[own, 0], acc[own, 1], acc[own, 2] = ax, ay, az
     return acc

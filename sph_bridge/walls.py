@@ -55,13 +55,13 @@ def wall_state(pos, vel, pressure, rho, fluid, gravity, h, cell, order, start, n
                     vz += w * vel[j, 2]
                     psum += pressure[j] * w
                     head += rho[j] * (gravity[0] * dx + gravity[1] * dy + gravity[2] * dz) * w
-        w_i = order[i]
+        own = order[i]  # i in the caller's arrays
         if wsum > 0.0:
-            vel_out[w_i, 0], vel_out[w_i, 1], vel_out[w_i, 2] = -vx / wsum, -vy / wsum, -vz / wsum
-            p_out[w_i] = (psum + head) / wsum
+            vel_out[own, 0], vel_out[own, 1], vel_out[own, 2] = -vx / wsum, -vy / wsum, -vz / wsum
+            p_out[own] = (psum + head) / wsum
         else:
-            vel_out[w_i, 0], vel_out[w_i, 1], vel_out[w_i, 2] = 0.0, 0.0, 0.0
-            p_out[w_i] = 0.0
+            vel_out[own, 0], vel_out[own, 1], vel_out[own, 2] = 0.0, 0.0, 0.0
+            p_out[own] = 0.0
     return vel_out, p_out
 
 
@@ -106,12 +106,12 @@ def proximity(pos, fluid, h, bulk_number, cell, order, start, neighbours, shifts
                     gx -= g * dx
                     gy -= g * dy
                     gz -= g * dz
-        f_i = order[i]
-        phi[f_i] = 1.0 - n_wall / bulk_number
-        number[f_i] = n_all
+        own = order[i]  # i in the caller's arrays
+        phi[own] = 1.0 - n_wall / bulk_number
+        number[own] = n_all
         norm = math.sqrt(gx * gx + gy * gy + gz * gz)
         if norm > 0.0:
-            normal[f_i, 0], normal[f_i, 1], normal[f_i, 2] = gx / norm, gy / norm, gz / norm
+            normal[own, 0], normal[own, 1], normal[own, 2] = gx / norm, gy / norm, gz / norm
     return phi, normal, number
 
 
