@@ -24,7 +24,7 @@ from pathlib import Path
 from . import __version__
 from .cli import (InputError, OneLineParser, int_at_least, new_run_directory, non_negative_int, number_in,
                   positive_number)
-from .rundir import atomic_run_directory
+from .rundir import RunDirectoryTaken, atomic_run_directory
 from .rundir import write_json as write_strict_json
 
 PROG = "python -m hmdem.calibrate"
@@ -345,6 +345,9 @@ def main(argv=None) -> int:
             return run_darcy_command(args, argv)
     except InputError as exc:
         print(f"{PROG}: {exc}", file=sys.stderr)
+        return 2
+    except RunDirectoryTaken as exc:
+        print(f"{PROG}: --out: {exc}", file=sys.stderr)
         return 2
     parser.print_usage(sys.stderr)
     return 2

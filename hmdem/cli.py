@@ -11,6 +11,8 @@ import sys
 import time
 from pathlib import Path
 
+from .rundir import RunDirectoryTaken
+
 
 class InputError(ValueError):
     """Bad command-line input found after parsing (e.g. a missing file): one line, exit 2."""
@@ -74,13 +76,17 @@ def _interrupt(signum, frame):
 
 def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -> int:
     """Run ``commands[args.command](args)``: a batch system's SIGTERM (or kill) ends it like
-    Ctrl-C, an :class:`InputError` is one line on stderr and exit status 2."""
+    Ctrl-C, an :class:`InputError` is one line on stderr and exit status 2, and so is an ``--out``
+    that another process took during the run (:class:`~hmdem.rundir.RunDirectoryTaken`)."""
     signal.signal(signal.SIGTERM, _interrupt)
     try:
         if args.command in commands:
             return commands[args.command](args)
     except InputError as exc:
         print(f"{prog}: {exc}", file=sys.stderr)
+        return 2
+    except RunDirectoryTaken as exc:
+        print(f"{prog}: --out: {exc}", file=sys.stderr)
         return 2
     parser.print_help()
     return 2

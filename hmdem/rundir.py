@@ -52,9 +52,17 @@ def json_safe(obj):
     return obj
 
 
+class RunDirectoryTaken(OSError):
+    """The run directory appeared while the run ran (another process made it); the results were
+    kept under a sibling name, which the message gives."""
+
+
 @contextmanager
 def atomic_run_directory(final: Path):
-    """Yield a temporary sibling directory; rename it to ``final`` when the block completes."""
+    """Yield a temporary sibling directory; rename it to ``final`` when the block completes.
+
+    Raises :class:`RunDirectoryTaken` when ``final`` was made meanwhile and holds something: the
+    finished run is then renamed ``<final>.unsaved-XXXX`` rather than lost or merged."""
     final = Path(final)
     final.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.partial-", dir=final.parent))
@@ -63,7 +71,13 @@ def atomic_run_directory(final: Path):
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    os.replace(tmp, final)
+    try:
+        os.replace(tmp, final)
+    except OSError:  # a non-empty directory or a file now stands at ``final``
+        kept = final.with_name(f"{final.name}.unsaved-{tmp.name.rsplit('-', 1)[-1]}")
+        os.replace(tmp, kept)
+        raise RunDirectoryTaken(f"{str(final)!r} was created by another process during the run; this run's "
+                                f"results are in {str(kept)!r}") from None
 
 
 @contextmanager

@@ -276,8 +276,8 @@ def run_droplet(args) -> int:
         key = checkpoint.key(sim, t_min, args.volume, args.ridge, args.start_height)
         try:
             checkpoint.check_directory(args.checkpoint, out)
+            lock = checkpoint.hold(args.checkpoint)  # noqa: F841 (held until this run ends)
             restored = checkpoint.restore(args.checkpoint, key, sim)
-            args.checkpoint.mkdir(parents=True, exist_ok=True)
         except (checkpoint.CheckpointError, OSError) as exc:
             raise InputError(f"--checkpoint: {exc}") from None
         if restored is not None:

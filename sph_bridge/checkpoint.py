@@ -10,7 +10,9 @@ protocol: its :func:`key` is stored and a command with another is refused.
 
 from __future__ import annotations
 
+import fcntl
 import json
+import os
 import time
 import zipfile
 from dataclasses import asdict, astuple, fields
@@ -26,6 +28,7 @@ from .output import write_particles
 from .simulation import Simulation
 
 STATE = "state.npz"
+LOCK = ".lock"  # held (flock) by the run that writes the checkpoint
 # the next step reads pos, vel, acc and dt; the summary, the shape reading and the frames the rest
 ARRAYS = ("pos", "vel", "acc", "rho", "pressure", "number_density")
 
@@ -52,8 +55,29 @@ def check_directory(directory: Path, out: Path) -> None:
         raise CheckpointError(f"{str(directory)!r} lies in the run directory --out; give one outside it")
     if directory.exists() and not directory.is_dir():
         raise CheckpointError(f"{str(directory)!r} is a file; give a directory (new or a checkpoint's)")
-    if directory.is_dir() and any(directory.iterdir()) and not (directory / STATE).exists():
+    if directory.is_dir() and any(p.name != LOCK for p in directory.iterdir()) and not (directory / STATE).exists():
         raise CheckpointError(f"{str(directory)!r} holds files but no {STATE}; give a new directory or a checkpoint's")
+
+
+def hold(directory: Path):
+    """Create ``directory`` if needed and lock it for this process (released when the returned
+    file is closed or the process ends): two runs on one checkpoint would write the same
+    trajectory twice over, so the second is refused."""
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    lock = open(directory / LOCK, "a+")
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        lock.seek(0)
+        holder = lock.read().strip() or "another process"
+        lock.close()
+        raise CheckpointError(f"{str(directory)!r} is being written by a running droplet ({holder}); wait for it "
+                              "or stop it") from None
+    lock.truncate(0)
+    lock.write(f"pid {os.getpid()}\n")
+    lock.flush()
+    return lock
 
 
 def frame_path(directory: Path, index: int) -> Path:

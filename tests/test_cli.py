@@ -80,6 +80,23 @@ def test_run_directory_contract(tmp_path):
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no partial directory left
 
 
+def test_an_out_taken_during_the_run_keeps_the_results_beside_it(tmp_path):
+    # another process makes --out while a run runs: the finished run is neither lost nor merged
+    # into it, but kept as <out>.unsaved-XXXX, and the error names that directory
+    from hmdem.rundir import RunDirectoryTaken, atomic_run_directory
+
+    out = tmp_path / "run"
+    with pytest.raises(RunDirectoryTaken, match="unsaved") as taken:
+        with atomic_run_directory(out) as tmp:
+            (tmp / "summary.json").write_text("{}")
+            out.mkdir()
+            (out / "theirs.txt").write_text("another run's file")
+    kept = [p for p in tmp_path.iterdir() if p.name.startswith("run.unsaved-")]
+    assert len(kept) == 1 and str(kept[0]) in str(taken.value) and (kept[0] / "summary.json").exists()
+    assert sorted(p.name for p in out.iterdir()) == ["theirs.txt"]
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no partial directory left
+
+
 def test_interrupted_run_leaves_valid_directory(tmp_path, monkeypatch):
     # Ctrl-C mid-run: the run directory is still complete, with status "interrupted"
     from hmdem.flow import simulation

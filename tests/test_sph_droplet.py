@@ -6,13 +6,14 @@ The physics tests run at dx = 5e-4 m with the calibrated parameters of
 
 import json
 import math
+import os
 import subprocess
 import sys
 
 import numpy as np
 import pytest
 
-from sph_bridge import calibrations, droplet, young_laplace
+from sph_bridge import calibrations, checkpoint, droplet, young_laplace
 from sph_bridge.kernel import INTERACTION_RANGE, interaction_shape, wendland_gradient_over_r
 from sph_bridge.simulation import SphParameters
 
@@ -267,6 +268,12 @@ def test_a_killed_droplet_goes_on_from_its_checkpoint_to_the_straight_runs_resul
     for command, directory in ((other, ck), (args, str(tmp_path / "straight"))):
         assert cli.main(command + ["--out", str(tmp_path / "other"), "--checkpoint", directory]) == 2
         assert not (tmp_path / "other").exists()
+    # a checkpoint another run is still writing is refused: two runs would write one trajectory twice
+    held = checkpoint.hold(ck)
+    capsys.readouterr()
+    assert cli.main(args + ["--out", str(tmp_path / "other"), "--checkpoint", ck]) == 2
+    assert f"pid {os.getpid()}" in capsys.readouterr().err and not (tmp_path / "other").exists()
+    held.close()
 
 
 def test_droplet_bad_input_is_one_line(tmp_path):
