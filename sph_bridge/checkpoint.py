@@ -4,7 +4,8 @@ is given again (with a new ``--out``), and ends where a straight run would (the 
 step, the random stream of the annealing kicks and the samples taken are restored exactly).
 
 ``DIR/state.npz`` is replaced atomically after every sample; the ParaView frames taken so far
-sit beside it as ``particles_NNNN.vtu``. A checkpoint belongs to one drop and one relaxation
+sit beside it as ``particles_NNNN.vtu``, and ``progress.json`` says how far the run has got
+(simulated time, steps, samples, the last shape, wall time) for a look while it runs. A checkpoint belongs to one drop and one relaxation
 protocol: its :func:`key` is stored and a command with another is refused.
 """
 
@@ -20,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hmdem.rundir import replaced_atomically
+from hmdem.rundir import json_safe, replaced_atomically, write_text_atomic
 
 from . import droplet
 from .droplet import DropShape
@@ -28,6 +29,7 @@ from .output import write_particles
 from .simulation import Simulation
 
 STATE = "state.npz"
+PROGRESS = "progress.json"
 LOCK = ".lock"  # held (flock) by the run that writes the checkpoint
 # the next step reads pos, vel, acc and dt; the summary, the shape reading and the frames the rest
 ARRAYS = ("pos", "vel", "acc", "rho", "pressure", "number_density")
@@ -108,6 +110,12 @@ def save(directory: Path, key: str, sim: Simulation, shapes: list[DropShape], ro
                  shapes=np.array([astuple(s) for s in shapes], float).reshape(-1, len(fields(DropShape))),
                  rows=np.array(rows, float).reshape(len(rows), -1),
                  frame_times=np.array(frame_times, float))
+    last = asdict(shapes[-1]) if shapes else {}
+    write_text_atomic(directory / PROGRESS, json.dumps(json_safe({
+        "simulated_time_s": sim.t, "steps": sim.record.steps, "shape_samples": len(shapes),
+        "frames": len(frame_times), "wall_time_s": round(time.perf_counter() - sim.wall_start, 1),
+        "height_m": last.get("height"), "width_m": last.get("width"),
+        "contact_angle_deg": last.get("contact_angle_deg")}), indent=2) + "\n")
 
 
 def restore(directory: Path, key: str, sim: Simulation):

@@ -243,6 +243,10 @@ def test_a_killed_droplet_goes_on_from_its_checkpoint_to_the_straight_runs_resul
     calls.clear()
     stop_at = 4
     assert run("stopped", "--checkpoint", ck) == 130
+    progress = json.loads((tmp_path / "ck" / "progress.json").read_text())  # how far it got, for a look
+    stopped = json.loads((tmp_path / "stopped" / "summary.json").read_text())
+    assert progress["shape_samples"] == 3 and 0 < progress["steps"] <= stopped["steps"]
+    assert progress["simulated_time_s"] <= stopped["simulated_time_s"] and progress["height_m"] > 0
     calls.clear()
     stop_at = 0
     capsys.readouterr()
