@@ -52,6 +52,9 @@ def json_safe(obj):
     return obj
 
 
+UNSAVED = ".unsaved-"  # in the name of a finished run kept beside an --out another process took
+
+
 class RunDirectoryTaken(OSError):
     """The run directory appeared while the run ran (another process made it); the results were
     kept under a sibling name, which the message gives."""
@@ -62,7 +65,8 @@ def atomic_run_directory(final: Path):
     """Yield a temporary sibling directory; rename it to ``final`` when the block completes.
 
     Raises :class:`RunDirectoryTaken` when ``final`` was made meanwhile and holds something: the
-    finished run is then renamed ``<final>.unsaved-XXXX`` rather than lost or merged."""
+    finished run is then renamed ``<final>.unsaved-XXXX`` rather than lost or merged (a sweep
+    does not read it as a run)."""
     final = Path(final)
     final.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.partial-", dir=final.parent))
@@ -73,8 +77,10 @@ def atomic_run_directory(final: Path):
         raise
     try:
         os.replace(tmp, final)
-    except OSError:  # a non-empty directory or a file now stands at ``final``
-        kept = final.with_name(f"{final.name}.unsaved-{tmp.name.rsplit('-', 1)[-1]}")
+    except OSError:
+        if not final.exists():  # not a directory or a file standing at ``final``: another failure
+            raise
+        kept = final.with_name(f"{final.name}{UNSAVED}{tmp.name.rsplit('-', 1)[-1]}")
         os.replace(tmp, kept)
         raise RunDirectoryTaken(f"{str(final)!r} was created by another process during the run; this run's "
                                 f"results are in {str(kept)!r}") from None

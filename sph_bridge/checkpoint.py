@@ -5,8 +5,10 @@ step, the random stream of the annealing kicks and the samples taken are restore
 
 ``DIR/state.npz`` is replaced atomically after every sample; the ParaView frames taken so far
 sit beside it as ``particles_NNNN.vtu``, and ``progress.json`` says how far the run has got
-(simulated time, steps, samples, the last shape, wall time) for a look while it runs. A checkpoint belongs to one drop and one relaxation
-protocol: its :func:`key` is stored and a command with another is refused.
+(simulated time, steps, samples, the last shape, wall time) for a look while it runs. The run
+writing a checkpoint holds a lock on it (``.lock``), and a second run on it is refused. A
+checkpoint belongs to one drop and one relaxation protocol: its :func:`key` is stored and a
+command with another is refused.
 """
 
 from __future__ import annotations
@@ -14,6 +16,8 @@ from __future__ import annotations
 import fcntl
 import json
 import os
+import socket
+import sys
 import time
 import zipfile
 from dataclasses import asdict, astuple, fields
@@ -51,33 +55,45 @@ def key(sim: Simulation, t_min: float, volume: float, ridge: bool, start_height:
 
 def check_directory(directory: Path, out: Path) -> None:
     """Refuse a directory that is neither new nor a checkpoint (its files would be overwritten),
-    or one at or inside the run directory (which is written whole at the end)."""
+    or one at or inside the run directory (which is written whole at the end). Frames and
+    hidden files (the lock, a temporary state) without a state are a checkpoint killed before
+    its first save."""
     directory, out = Path(directory).resolve(), Path(out).resolve()
     if directory == out or out in directory.parents:
         raise CheckpointError(f"{str(directory)!r} lies in the run directory --out; give one outside it")
     if directory.exists() and not directory.is_dir():
         raise CheckpointError(f"{str(directory)!r} is a file; give a directory (new or a checkpoint's)")
-    if directory.is_dir() and any(p.name != LOCK for p in directory.iterdir()) and not (directory / STATE).exists():
+    if directory.is_dir() and not (directory / STATE).exists() and any(
+            not (p.name.startswith(".") or p.name.startswith("particles_")) for p in directory.iterdir()):
         raise CheckpointError(f"{str(directory)!r} holds files but no {STATE}; give a new directory or a checkpoint's")
 
 
 def hold(directory: Path):
     """Create ``directory`` if needed and lock it for this process (released when the returned
     file is closed or the process ends): two runs on one checkpoint would write the same
-    trajectory twice over, so the second is refused."""
+    trajectory twice over, so the second is refused. Where the file system has no locks (some
+    cluster mounts) or the lock file cannot be made, the run goes on unlocked with a warning
+    (returns None)."""
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
-    lock = open(directory / LOCK, "a+")
+    try:
+        lock = open(directory / LOCK, "a+")
+    except OSError as exc:
+        print(f"warning: {str(directory)!r} is not locked against a second run ({exc.strerror})", file=sys.stderr)
+        return None
     try:
         fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
+    except OSError as exc:
         lock.seek(0)
         holder = lock.read().strip() or "another process"
         lock.close()
-        raise CheckpointError(f"{str(directory)!r} is being written by a running droplet ({holder}); wait for it "
-                              "or stop it") from None
+        if isinstance(exc, BlockingIOError):
+            raise CheckpointError(f"{str(directory)!r} is being written by a running droplet ({holder}); wait "
+                                  "for it or stop it") from None
+        print(f"warning: {str(directory)!r} is not locked against a second run ({exc.strerror})", file=sys.stderr)
+        return None
     lock.truncate(0)
-    lock.write(f"pid {os.getpid()}\n")
+    lock.write(f"pid {os.getpid()} on {socket.gethostname()}\n")
     lock.flush()
     return lock
 

@@ -80,7 +80,7 @@ def test_run_directory_contract(tmp_path):
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no partial directory left
 
 
-def test_an_out_taken_during_the_run_keeps_the_results_beside_it(tmp_path):
+def test_an_out_taken_during_the_run_keeps_the_results_beside_it(tmp_path, capsys):
     # another process makes --out while a run runs: the finished run is neither lost nor merged
     # into it, but kept as <out>.unsaved-XXXX, and the error names that directory
     from hmdem.rundir import RunDirectoryTaken, atomic_run_directory
@@ -95,6 +95,20 @@ def test_an_out_taken_during_the_run_keeps_the_results_beside_it(tmp_path):
     assert len(kept) == 1 and str(kept[0]) in str(taken.value) and (kept[0] / "summary.json").exists()
     assert sorted(p.name for p in out.iterdir()) == ["theirs.txt"]
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no partial directory left
+    # through a command: one line naming --out and the kept directory, exit status 2
+    import argparse
+
+    from hmdem.cli import dispatch
+
+    def command(args):
+        with atomic_run_directory(tmp_path / "second"):
+            (tmp_path / "second").mkdir()
+            (tmp_path / "second" / "theirs.txt").write_text("")
+        return 0
+
+    assert dispatch("prog", argparse.ArgumentParser(), argparse.Namespace(command="run"), {"run": command}) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("prog: --out:") and "second.unsaved-" in lines[0]
 
 
 def test_interrupted_run_leaves_valid_directory(tmp_path, monkeypatch):

@@ -232,6 +232,8 @@ def test_a_killed_droplet_goes_on_from_its_checkpoint_to_the_straight_runs_resul
     def counted(sim, ridge):
         calls.append(sim.t)
         if len(calls) == stop_at:
+            with pytest.raises(checkpoint.CheckpointError, match="being written"):
+                checkpoint.hold(ck)  # the running droplet holds its checkpoint
             raise KeyboardInterrupt
         return measure(sim, ridge)
 
@@ -274,10 +276,12 @@ def test_a_killed_droplet_goes_on_from_its_checkpoint_to_the_straight_runs_resul
         assert not (tmp_path / "other").exists()
     # a checkpoint another run is still writing is refused: two runs would write one trajectory twice
     held = checkpoint.hold(ck)
-    capsys.readouterr()
-    assert cli.main(args + ["--out", str(tmp_path / "other"), "--checkpoint", ck]) == 2
-    assert f"pid {os.getpid()}" in capsys.readouterr().err and not (tmp_path / "other").exists()
-    held.close()
+    try:
+        capsys.readouterr()
+        assert cli.main(args + ["--out", str(tmp_path / "other"), "--checkpoint", ck]) == 2
+        assert f"pid {os.getpid()}" in capsys.readouterr().err and not (tmp_path / "other").exists()
+    finally:
+        held.close()
 
 
 def test_droplet_bad_input_is_one_line(tmp_path):

@@ -251,3 +251,15 @@ def test_collect_rejects_a_directory_without_runs(tmp_path):
                           text=True)
     assert proc.returncode == 2 and "no run directories" in proc.stderr
     assert list(tmp_path.iterdir()) == []  # nothing written
+
+
+def test_runs_kept_aside_and_partial_writes_are_not_read_as_runs(tmp_path):
+    # a run kept as <out>.unsaved-XXXX (another process took its name, hmdem.rundir) or still
+    # being written (.NAME.partial-XXXX) is no row of the sweep table: its point has its run
+    from hmdem.sweep.table import run_directories
+
+    for name in ("M-1_Ca-2_s0", "M-1_Ca-2_s0.unsaved-ab12", ".M-1_Ca-3_s0.partial-cd34"):
+        (tmp_path / name).mkdir()
+        for f in ("summary.json", "config.toml"):
+            (tmp_path / name / f).write_text("")
+    assert run_directories(tmp_path) == [tmp_path / "M-1_Ca-2_s0"]

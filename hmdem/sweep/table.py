@@ -11,7 +11,7 @@ import os
 import tomllib
 from pathlib import Path
 
-from ..rundir import write_text_atomic
+from ..rundir import UNSAVED, write_text_atomic
 from .runner import INCOMPLETE
 
 COLUMNS = ["run", "log_m", "log_ca_star", "viscosity_ratio", "ca_star", "ca", "seed", "status", "regime",
@@ -26,10 +26,11 @@ NO_RESULT = ("failed", *INCOMPLETE)
 
 def run_directories(root: Path) -> list[Path]:
     """Directories under ``root`` holding a run (summary.json and config.toml); hidden ones,
-    e.g. partial writes, are skipped."""
+    e.g. partial writes, and runs kept aside because another process took their name
+    (:class:`~hmdem.rundir.RunDirectoryTaken`) are skipped."""
     found = []
     for dirpath, dirnames, filenames in os.walk(root):
-        dirnames[:] = sorted(d for d in dirnames if not d.startswith("."))
+        dirnames[:] = sorted(d for d in dirnames if not d.startswith(".") and UNSAVED not in d)
         if "summary.json" in filenames and "config.toml" in filenames:
             found.append(Path(dirpath))
             dirnames[:] = []
