@@ -268,7 +268,7 @@ def run_droplet(args) -> int:
                          f"dx = {args.dx:g} m; at least {MIN_START_LAYERS * args.dx:g} m is allowed")
     params, sigma, source = droplet_parameters(args)
     out = new_run_directory(args.out, args.command)
-    sim, t_min = droplet.prepare_drop(params, args.volume, sigma, args.ridge, args.start_height)
+    sim, t_min = droplet.prepare_drop(params, args.volume, sigma, args.ridge, args.start_height, args.theta)
     start_top = float(sim.pos[sim.fluid, 2].max()) + args.dx / 2  # the starting drop's surface
     shapes, rows, frames = [], [], []  # frames: (t, particle state or the checkpoint's .vtu of it)
     key = None

@@ -28,7 +28,7 @@ from .simulation import SphParameters
 SIGMA_TOLERANCE = 0.01  # relative
 ANGLE_TOLERANCE_DEG = 1.0  # a third of the issue's ±3° band around the target
 MAX_TRIALS = 8
-WATER_DENSITY = 1000.0  # kg/m^3: the bulk density the fluid relaxes to
+WATER_DENSITY = droplet.WATER_DENSITY  # kg/m^3: the bulk density the fluid relaxes to
 DENSITY_TOLERANCE = 0.005  # relative
 TENSION_FIRST_GUESS = 2e-3  # s_ff / dx [N/m]: sigma = 0.074 N/m at dx = 5e-4 m, c0 = 1.5 m/s
 SLAB_PERIODS = 6  # periods 2 L / c0 of the free slab's fundamental acoustic mode: sigma settles to 0.1 % by then

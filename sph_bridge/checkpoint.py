@@ -45,12 +45,16 @@ class CheckpointError(ValueError):
 
 def key(sim: Simulation, t_min: float, volume: float, ridge: bool, start_height: float | None) -> str:
     """What a checkpoint must match: the drop's parameters (damping included), its volume and
-    geometry, its minimum relaxation and the relaxation protocol's constants (a code change
-    between the pieces of a run would otherwise mix two protocols)."""
+    geometry (down to the particle count and the box, which the plate's size sets), its minimum
+    relaxation and the relaxation protocol's constants (a code change between the pieces of a
+    run would otherwise mix two protocols or two set-ups)."""
     protocol = {name: getattr(droplet, name) for name in ("SAMPLES", "SETTLE_WINDOW", "SETTLED", "MAX_EXTENSION",
                                                          "ANNEAL_FRACTION")}
+    box = [sim.grid.lo.tolist(), (sim.grid.lo + sim.grid.length).tolist()]
     return json.dumps({"parameters": asdict(sim.params), "volume_m3": volume, "ridge": ridge,
-                       "start_height_m": start_height, "t_min_s": t_min, "protocol": protocol}, sort_keys=True)
+                       "start_height_m": start_height, "t_min_s": t_min, "protocol": protocol,
+                       "particles": len(sim.pos), "fluid_particles": int(sim.fluid.sum()), "box_m": box},
+                      sort_keys=True)
 
 
 def check_directory(directory: Path, out: Path) -> None:

@@ -32,6 +32,7 @@ from .kernel import INTERACTION_RANGE
 from .simulation import FULL_KERNEL, Simulation, SphParameters
 
 SURFACE_TENSION = 0.072  # N/m, water at 20 °C (seed 000 §3.1)
+WATER_DENSITY = 1000.0  # kg/m^3: the bulk density a calibrated fluid relaxes to
 SHELL_BINS = 12  # angular bins of the outer shell per quarter turn
 RELAXATION_TIMES = 8  # a relaxation lasts this many times 1/omega of the drop's slowest mode
 
@@ -297,18 +298,43 @@ def has_settled(shapes: list[DropShape], first_check: int) -> bool:
     return bool(abs(last / before - 1.0) < SETTLED)
 
 
+ROOM_BELOW_TARGET_DEG = 10.0  # a gravity drop's plate holds its equilibrium this much flatter
+
+
+def plate_room(fluid_volume: float, ridge: bool, theta_deg: float, capillary_length: float, h: float) -> float:
+    """Plate radius a drop under gravity needs: half the Young-Laplace base width of its fluid
+    volume at :data:`ROOM_BELOW_TARGET_DEG` under the target angle (at most halving it), plus
+    the pairwise force's range 2h, so that the equilibrium contact line never feels the plate's
+    edge, whose missing wall particles would weaken the adhesion there and hold the line back
+    (decisions #62). A ridge's volume is per its periodic length."""
+    from .young_laplace import sessile_height
+
+    room_angle = max(theta_deg - ROOM_BELOW_TARGET_DEG, theta_deg / 2.0)
+    _, width = sessile_height(fluid_volume, room_angle, capillary_length, axisymmetric=not ridge)
+    return width / 2.0 + INTERACTION_RANGE * h
+
+
 def prepare_drop(params: SphParameters, volume: float, surface_tension: float, ridge: bool = False,
-                 start_height: float | None = None):
+                 start_height: float | None = None, theta_deg: float | None = None):
     """The starting drop on its plate with the damping of :func:`relaxation`, and its minimum
     relaxation time for :func:`relax`. The calibration and the droplet command share this
     protocol. The drop is no taller than ``start_height`` (default 2 lambda_c, the puddle height
     at 180°, or none at zero gravity): starting above its equilibrium its contact line advances,
     starting below it recedes, and the two stop at different angles (contact-angle hysteresis of
-    the lattice wall, decisions #57)."""
+    the lattice wall, decisions #57). Under gravity with a target angle ``theta_deg`` the plate
+    is at least :func:`plate_room` wide."""
     g = float(np.linalg.norm(params.gravity))
     max_height = 2.0 * capillary_length(surface_tension, params.rho0_fluid, g) if g > 0 else math.inf
     if start_height is not None:
         max_height = start_height
-    fluid = starting_drop(volume, params.dx, max_height, ridge)
-    params, t_min = relaxation(params, surface_tension, float(np.abs(fluid[:, 0]).max()) + params.dx / 2)
-    return sessile(params, volume, ridge, max_height), t_min
+    dx = params.dx
+    fluid = starting_drop(volume, dx, max_height, ridge)
+    reach = float(np.abs(fluid[:, 0]).max()) + dx / 2
+    params, t_min = relaxation(params, surface_tension, reach)
+    plate_radius = 2.0 * reach + INTERACTION_RANGE * params.h  # sessile's default
+    if g > 0 and theta_deg is not None:
+        # the fluid's volume at the bulk density a calibration sets (its mass is rho0 dx^3 a particle)
+        fluid_volume = len(fluid) * params.rho0_fluid * dx**3 / WATER_DENSITY / (RIDGE_LENGTH * dx if ridge else 1.0)
+        lam = capillary_length(surface_tension, WATER_DENSITY, g)
+        plate_radius = max(plate_radius, plate_room(fluid_volume, ridge, theta_deg, lam, params.h))
+    return sessile(params, volume, ridge, max_height, plate_radius), t_min

@@ -77,6 +77,26 @@ def test_start_height_caps_the_starting_drop():
         assert len(fluid) * CI_DX**3 == pytest.approx(5.7e-7, rel=0.06)
 
 
+@pytest.mark.parametrize("dx", [CI_DX, 2e-4])
+def test_a_puddles_plate_holds_its_equilibrium_beyond_the_pairwise_range(dx):
+    # decisions #62: the puddle test's contact line must come to rest where the plate still
+    # reaches 2h beyond it (the pairwise force's range). The plate once reached 2 starting
+    # widths: at 2e-4 m its edge lay 0.07 mm beyond the Young-Laplace equilibrium line
+    from sph_bridge.kernel import INTERACTION_RANGE
+
+    entry = calibrations.lookup(dx, THETA)
+    params = SphParameters(dx=dx, c0=entry.c0, rho0_fluid=entry.rho0_fluid, s_ff=entry.s_ff, s_sf=entry.s_sf,
+                           gravity=(0.0, 0.0, -9.81))
+    lam = droplet.capillary_length(0.072, 1000.0, 9.81)
+    volume = 8 * lam * 2.918e-3 * droplet.RIDGE_LENGTH * dx  # the puddle test's
+    sim, _ = droplet.prepare_drop(params, volume, entry.surface_tension, True, None, THETA)
+    fluid_area = sim.mass[sim.fluid].sum() / droplet.WATER_DENSITY / (droplet.RIDGE_LENGTH * dx)
+    _, width = young_laplace.sessile_height(fluid_area, THETA,
+                                            droplet.capillary_length(entry.surface_tension, 1000.0, 9.81), False)
+    plate_edge = sim.pos[~sim.fluid, 0].max() + dx / 2
+    assert plate_edge >= width / 2 + INTERACTION_RANGE * sim.h
+
+
 def test_slab_surface_tension_sums_every_pair_once():
     # the numba virial against a direct double sum over the pairs of a small jittered slab
     from sph_bridge.tension import slab, surface_tension
