@@ -301,17 +301,29 @@ def has_settled(shapes: list[DropShape], first_check: int) -> bool:
 ROOM_BELOW_TARGET_DEG = 10.0  # a gravity drop's plate holds its equilibrium this much flatter
 
 
-def plate_room(fluid_volume: float, ridge: bool, theta_deg: float, capillary_length: float, h: float) -> float:
+THINNEST_FILM_CELLS = 2  # no plate is sized for a film thinner than this many dx
+
+
+def plate_room(fluid_volume: float, ridge: bool, theta_deg: float, capillary_length: float, h: float,
+               dx: float) -> float:
     """Plate radius a drop under gravity needs: half the Young-Laplace base width of its fluid
     volume at :data:`ROOM_BELOW_TARGET_DEG` under the target angle (at most halving it), plus
-    the pairwise force's range 2h, so that the equilibrium contact line never feels the plate's
-    edge, whose missing wall particles would weaken the adhesion there and hold the line back
-    (decisions #62). A ridge's volume is per its periodic length."""
+    the pairwise force's range 2h, so that the equilibrium contact line stays beyond the reach
+    of the plate's edge, where wall particles are missing from the adhesion (decisions #62).
+    A ridge's volume is per its periodic length. At small angles the room is that of a film
+    :data:`THINNEST_FILM_CELLS` dx thick at most: a thinner one is below the resolution."""
     from .young_laplace import sessile_height
 
+    film = THINNEST_FILM_CELLS * dx
+    widest = fluid_volume / film / 2.0 if ridge else math.sqrt(fluid_volume / (math.pi * film))
     room_angle = max(theta_deg - ROOM_BELOW_TARGET_DEG, theta_deg / 2.0)
-    _, width = sessile_height(fluid_volume, room_angle, capillary_length, axisymmetric=not ridge)
-    return width / 2.0 + INTERACTION_RANGE * h
+    if 2.0 * capillary_length * math.sin(math.radians(room_angle) / 2.0) <= film:  # a puddle thinner than that
+        return widest + INTERACTION_RANGE * h
+    try:
+        half_width = sessile_height(fluid_volume, room_angle, capillary_length, axisymmetric=not ridge)[1] / 2.0
+    except (ValueError, OverflowError):  # no drop so flat holds the volume: a film it is
+        half_width = widest
+    return min(half_width, widest) + INTERACTION_RANGE * h
 
 
 def prepare_drop(params: SphParameters, volume: float, surface_tension: float, ridge: bool = False,
@@ -336,5 +348,5 @@ def prepare_drop(params: SphParameters, volume: float, surface_tension: float, r
         # the fluid's volume at the bulk density a calibration sets (its mass is rho0 dx^3 a particle)
         fluid_volume = len(fluid) * params.rho0_fluid * dx**3 / WATER_DENSITY / (RIDGE_LENGTH * dx if ridge else 1.0)
         lam = capillary_length(surface_tension, WATER_DENSITY, g)
-        plate_radius = max(plate_radius, plate_room(fluid_volume, ridge, theta_deg, lam, params.h))
+        plate_radius = max(plate_radius, plate_room(fluid_volume, ridge, theta_deg, lam, params.h, dx))
     return sessile(params, volume, ridge, max_height, plate_radius), t_min

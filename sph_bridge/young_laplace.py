@@ -60,9 +60,10 @@ def sessile_height(volume: float, theta_deg: float, capillary_length: float, axi
 
     size = volume ** (1.0 / 3.0) if axisymmetric else math.sqrt(volume)
     lo, hi = math.log(size * 1e-3), math.log(size * 1e3)
+    first = lo
     # a puddle's width grows only as lambda_c ln(b / lambda_c) with its apex radius b
     while excess(hi) < 0.0:
-        if hi > lo + 200.0:
+        if hi > first + 200.0:
             raise ValueError("no Young-Laplace drop holds that volume")
         lo, hi = hi, hi + 10.0
     log_b = brentq(excess, lo, hi, xtol=1e-12)
