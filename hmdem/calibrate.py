@@ -343,11 +343,8 @@ def main(argv=None) -> int:
             return run_biaxial_command(args, argv)
         if args.command == "darcy":
             return run_darcy_command(args, argv)
-    except InputError as exc:
+    except (InputError, RunDirectoryTaken) as exc:
         print(f"{PROG}: {exc}", file=sys.stderr)
-        return 2
-    except RunDirectoryTaken as exc:
-        print(f"{PROG}: --out: {exc}", file=sys.stderr)
         return 2
     parser.print_usage(sys.stderr)
     return 2

@@ -82,11 +82,8 @@ def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -
     try:
         if args.command in commands:
             return commands[args.command](args)
-    except InputError as exc:
+    except (InputError, RunDirectoryTaken) as exc:
         print(f"{prog}: {exc}", file=sys.stderr)
-        return 2
-    except RunDirectoryTaken as exc:
-        print(f"{prog}: --out: {exc}", file=sys.stderr)
         return 2
     parser.print_help()
     return 2

@@ -82,8 +82,8 @@ def atomic_run_directory(final: Path):
             raise
         kept = final.with_name(f"{final.name}{UNSAVED}{tmp.name.rsplit('-', 1)[-1]}")
         os.replace(tmp, kept)
-        raise RunDirectoryTaken(f"{str(final)!r} was created by another process during the run; this run's "
-                                f"results are in {str(kept)!r}") from None
+        raise RunDirectoryTaken(f"--out: {str(final)!r} was created by another process during the run; this "
+                                f"run's results are in {str(kept)!r}") from None
 
 
 @contextmanager

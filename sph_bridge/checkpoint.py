@@ -82,18 +82,17 @@ def hold(directory: Path):
     directory.mkdir(parents=True, exist_ok=True)
     try:
         lock = open(directory / LOCK, "a+")
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            lock.seek(0)
+            holder = lock.read().strip() or "another process"
+            lock.close()
+            raise
+    except BlockingIOError:
+        raise CheckpointError(f"{str(directory)!r} is being written by a running droplet ({holder}); wait for it "
+                              "or stop it") from None
     except OSError as exc:
-        print(f"warning: {str(directory)!r} is not locked against a second run ({exc.strerror})", file=sys.stderr)
-        return None
-    try:
-        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError as exc:
-        lock.seek(0)
-        holder = lock.read().strip() or "another process"
-        lock.close()
-        if isinstance(exc, BlockingIOError):
-            raise CheckpointError(f"{str(directory)!r} is being written by a running droplet ({holder}); wait "
-                                  "for it or stop it") from None
         print(f"warning: {str(directory)!r} is not locked against a second run ({exc.strerror})", file=sys.stderr)
         return None
     lock.truncate(0)

@@ -100,14 +100,13 @@ def starting_drop(volume: float, dx: float, max_height: float, ridge: bool) -> n
 
 def sessile(params: SphParameters, volume: float, ridge: bool = False, max_height: float = math.inf,
             plate_radius: float | None = None) -> Simulation:
-    """The starting drop (:func:`starting_drop`) on a 3-layer plate reaching ``plate_radius`` from
-    the axis (default: twice the starting drop's reach plus the pairwise force's range 2h, room
-    to spread to a ~20° contact angle). A ridge is periodic along y."""
+    """The starting drop (:func:`starting_drop`) on a 3-layer plate reaching twice the starting
+    drop's reach plus the pairwise force's range 2h from the axis (room to spread to a ~20°
+    contact angle), or ``plate_radius`` where that is further. A ridge is periodic along y."""
     dx = params.dx
     fluid = starting_drop(volume, dx, max_height, ridge)
     reach = float(np.abs(fluid[:, 0]).max()) + dx / 2
-    if plate_radius is None:
-        plate_radius = 2.0 * reach + INTERACTION_RANGE * params.h
+    plate_radius = max(2.0 * reach + INTERACTION_RANGE * params.h, plate_radius or 0.0)
     half = dx * math.ceil(plate_radius / dx)
     top = float(fluid[:, 2].max()) + INTERACTION_RANGE * params.h + 4 * dx
     if ridge:
@@ -343,10 +342,10 @@ def prepare_drop(params: SphParameters, volume: float, surface_tension: float, r
     fluid = starting_drop(volume, dx, max_height, ridge)
     reach = float(np.abs(fluid[:, 0]).max()) + dx / 2
     params, t_min = relaxation(params, surface_tension, reach)
-    plate_radius = 2.0 * reach + INTERACTION_RANGE * params.h  # sessile's default
+    plate_radius = None
     if g > 0 and theta_deg is not None:
         # the fluid's volume at the bulk density a calibration sets (its mass is rho0 dx^3 a particle)
         fluid_volume = len(fluid) * params.rho0_fluid * dx**3 / WATER_DENSITY / (RIDGE_LENGTH * dx if ridge else 1.0)
         lam = capillary_length(surface_tension, WATER_DENSITY, g)
-        plate_radius = max(plate_radius, plate_room(fluid_volume, ridge, theta_deg, lam, params.h, dx))
+        plate_radius = plate_room(fluid_volume, ridge, theta_deg, lam, params.h, dx)
     return sessile(params, volume, ridge, max_height, plate_radius), t_min
