@@ -268,7 +268,10 @@ def run_droplet(args) -> int:
                          f"dx = {args.dx:g} m; at least {MIN_START_LAYERS * args.dx:g} m is allowed")
     params, sigma, source = droplet_parameters(args)
     out = new_run_directory(args.out, args.command)
-    sim, t_min = droplet.prepare_drop(params, args.volume, sigma, args.ridge, args.start_height, args.theta)
+    plate_theta = args.theta
+    if source == "command line":  # no calibration ties these strengths to --theta (decisions #63)
+        plate_theta = min(plate_theta, droplet.pairwise_young_angle_deg(params.s_ff, params.s_sf))
+    sim, t_min = droplet.prepare_drop(params, args.volume, sigma, args.ridge, args.start_height, plate_theta)
     start_top = float(sim.pos[sim.fluid, 2].max()) + args.dx / 2  # the starting drop's surface
     shapes, rows, frames = [], [], []  # frames: (t, particle state or the checkpoint's .vtu of it)
     key = None
@@ -309,6 +312,12 @@ def run_droplet(args) -> int:
         bar.close()
     summary = droplet_summary(args, sim, shape, sigma, source, status)
     summary["settled"] = settled
+    summary["plate_sized_for_deg"] = plate_theta if args.gravity > 0 else math.nan
+    if summary["plate_edge_clearance_m"] < droplet.INTERACTION_RANGE * sim.params.h:  # NaN: no shape, no warning
+        print(f"droplet: warning: the contact line ended {summary['plate_edge_clearance_m'] * 1e3:.2f} mm from the "
+              f"plate's edge, inside the pairwise range 2h = {droplet.INTERACTION_RANGE * sim.params.h * 1e3:.2f} mm: "
+              "the edge, not the wetting, may have held it",
+              file=sys.stderr)
     config = config_of(args, sim, geometry={"dx_m": args.dx, "volume_m3": args.volume, "ridge": args.ridge,
                                             "start_top_m": start_top,
                                             "ridge_length_m": droplet.RIDGE_LENGTH * args.dx if args.ridge else 0.0},
@@ -357,7 +366,9 @@ def droplet_summary(args, sim, shape, sigma, source, status) -> dict:
                "cap_aspect": droplet.cap_aspect(args.theta), "bulk_density_kg_per_m3": rho,
                "fluid_volume_m3": volume * (droplet.RIDGE_LENGTH * args.dx if args.ridge else 1.0),
                "young_laplace_height_m": yl_height, "young_laplace_width_m": yl_width,
-               "height_error": shape.height / yl_height - 1.0}
+               "height_error": shape.height / yl_height - 1.0,
+               "plate_half_width_m": droplet.plate_half_width(sim),
+               "plate_edge_clearance_m": droplet.plate_half_width(sim) - shape.width / 2}
     if g > 0:
         puddle = droplet.puddle_height(sigma, rho, g, args.theta)
         summary.update({"capillary_length_m": lam, "puddle_height_m": puddle,

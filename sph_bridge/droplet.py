@@ -300,6 +300,20 @@ def has_settled(shapes: list[DropShape], first_check: int) -> bool:
 ROOM_BELOW_TARGET_DEG = 10.0  # a gravity drop's plate holds its equilibrium this much flatter
 
 
+def pairwise_young_angle_deg(s_ff: float, s_sf: float) -> float:
+    """Young's law for pairwise-additive forces, cos theta = 2 s_sf / s_ff - 1 (clipped to a
+    complete wetting or drying): the calibration's first guess (:mod:`sph_bridge.calibrate`).
+    It errs flat: the shipped calibrations measure 65.4° and 64.7° where it gives 56.3° and
+    56.5° (decisions #63)."""
+    return math.degrees(math.acos(min(1.0, max(-1.0, 2.0 * s_sf / s_ff - 1.0))))
+
+
+def plate_half_width(sim: Simulation) -> float:
+    """Distance [m] from the drop's axis to the plate's nearest edge, where its lattice cells end
+    dx/2 beyond its outermost particles along x (the plate is square or, under a ridge, a strip)."""
+    return float(np.abs(sim.pos[~sim.fluid, 0]).max()) + sim.params.dx / 2
+
+
 THINNEST_FILM_CELLS = 2  # no plate is sized for a film thinner than this many dx
 
 

@@ -110,6 +110,52 @@ def test_a_round_puddles_plate_and_a_films():
     assert droplet.plate_room(volume, False, 2.0, lam, h, dx) == pytest.approx(film + 2 * h, rel=1e-12)
 
 
+def test_pairwise_young_angle_errs_flat_of_the_calibrated_angles():
+    # decisions #63: cos theta = 2 s_sf / s_ff - 1 (clipped), and at the shipped strengths it
+    # is flatter than the angle measured, so a plate sized by it is wide enough
+    young = droplet.pairwise_young_angle_deg
+    assert young(1.0, 0.5) == pytest.approx(90.0) and young(1.0, 0.0) == pytest.approx(180.0)
+    assert young(1.0, 1.0) == 0.0 and young(1.0, 1.5) == 0.0
+    for entry in calibrations.TABLE.values():
+        assert young(entry.s_ff, entry.s_sf) < entry.contact_angle_deg - 5.0
+
+
+def test_explicit_strengths_size_the_plate_for_their_young_angle(monkeypatch, tmp_path, capsys):
+    # droplet --s-ff/--s-sf (no calibration): the plate holds the Young angle of the strengths
+    # where that is flatter than --theta, and summary.json says so (decisions #63); a short
+    # relaxation of a coarse ridge, the protocol shortened only to be quick
+    import signal
+
+    from sph_bridge import __main__ as cli
+
+    monkeypatch.setattr(signal, "signal", lambda *args: None)
+    for name, value in (("SAMPLES", 8), ("SETTLE_WINDOW", 2), ("MAX_EXTENSION", 2)):
+        monkeypatch.setattr(droplet, name, value)
+    short = droplet.relaxation
+    monkeypatch.setattr(droplet, "relaxation", lambda *a: (short(*a)[0], 4e-3))
+    params = SphParameters(dx=1e-3, c0=3.0, s_ff=4e-6, s_sf=3.6e-6, gravity=(0.0, 0.0, -9.81))
+
+    def plate_edge(theta):
+        sim, _ = droplet.prepare_drop(params, 2e-6, droplet.SURFACE_TENSION, True, None, theta)
+        return float(np.abs(sim.pos[~sim.fluid, 0]).max()) + params.dx / 2
+
+    young = droplet.pairwise_young_angle_deg(4e-6, 3.6e-6)  # 36.9°
+    assert plate_edge(young) > plate_edge(THETA)  # the target's plate would be too small for them
+    for name, extra, sized_for in (("default target", [], young), ("flatter target", ["--theta", "20"], 20.0)):
+        args = ["droplet", "--dx", "1e-3", "--volume", "2e-6", "--ridge", "--s-ff", "4e-6", "--s-sf", "3.6e-6",
+                "--c0", "3", "--quiet", "--out", str(tmp_path / name), *extra]
+        assert cli.main(args) == 0
+        summary = json.loads((tmp_path / name / "summary.json").read_text())
+        assert summary["plate_sized_for_deg"] == pytest.approx(sized_for)
+        assert summary["plate_half_width_m"] == pytest.approx(plate_edge(sized_for), abs=1e-12)
+        assert summary["plate_edge_clearance_m"] == pytest.approx(summary["plate_half_width_m"] - summary["width_m"] / 2)
+    assert "warning" not in capsys.readouterr().err
+    # a contact line within 2h of the edge is reported (here a plate made to end at the axis)
+    monkeypatch.setattr(droplet, "plate_half_width", lambda sim: 0.0)
+    assert cli.main(args[:-4] + ["--out", str(tmp_path / "edge")]) == 0
+    assert "warning: the contact line ended" in capsys.readouterr().err
+
+
 def test_slab_surface_tension_sums_every_pair_once():
     # the numba virial against a direct double sum over the pairs of a small jittered slab
     from sph_bridge.tension import slab, surface_tension
