@@ -5,7 +5,7 @@ with run directories; ``python -m sph_bridge lga ...``: the FHP-II lattice-gas s
     python -m sph_bridge droplet     [--dx M] [--theta DEG] [--volume M3] [--gravity G] [--ridge] [--start-height M]
                                      [--anneal U] [--seed N] [--checkpoint DIR] [--out DIR]
     python -m sph_bridge calibrate   [--dx M] [--theta DEG] [--surface-tension N/M] [--ridge-sizes N ...] [--anneal U]
-                                     [--out DIR]
+                                     [--checkpoint DIR] [--out DIR]
     python -m sph_bridge hydrostatic [--dx M] [--layers N] [--gravity G] [--out DIR]
     python -m sph_bridge poiseuille  [--dx M] [--layers N] [--gravity G] [--viscosity MU] [--out DIR]
 
@@ -107,6 +107,9 @@ def build_parser() -> OneLineParser:
                    f"calibrated (each >= {MIN_RIDGE_CELLS}; default {DROP_RADIUS_CELLS})")
     p.add_argument("--anneal", type=non_negative_number, default=0.0,
                    help=ANNEAL_HELP + " of the ridges (default 0)")
+    p.add_argument("--checkpoint", type=Path, metavar="DIR",
+                   help="save the trials in DIR as they finish; the same command run again with a new --out "
+                        "takes them as measured and goes on from there, to the result of a straight run")
     for name, text in (("hydrostatic", "water at rest between two walls under gravity: dP/dz = rho g"),
                        ("poiseuille", "body-force flow between two walls: the parabolic profile")):
         p = sub.add_parser(name, help=text, description=text)
@@ -425,13 +428,25 @@ def side_view(path: Path, sim, shape, summary: dict, ridge: bool) -> None:
 
 
 def run_calibrate(args) -> int:
-    from .calibrate import Calibration, calibrate, sound_speed
+    from .calibrate import Calibration, ReplayMismatch, calibrate, sound_speed
 
     out = new_run_directory(args.out, args.command)
     cal = Calibration(dx=args.dx, c0=args.c0 or sound_speed(args.dx), anneal=args.anneal)
+    targets = {"dx_m": args.dx, "theta_deg": args.theta, "surface_tension_n_per_m": args.surface_tension,
+               "c0_m_per_s": cal.c0, "ridge_sizes_dx": list(args.ridge_sizes), "anneal_m_per_s": args.anneal}
+    replay = []
+    if args.checkpoint is not None:
+        try:
+            checkpoint.check_directory(args.checkpoint, out, state=checkpoint.TRIALS)
+            lock = checkpoint.hold(args.checkpoint)  # noqa: F841 (held until this run ends)
+            replay = checkpoint.restore_trials(args.checkpoint, targets)
+        except (checkpoint.CheckpointError, OSError) as exc:
+            raise InputError(f"--checkpoint: {exc}") from None
     start = time.perf_counter()
 
     def report(trial):
+        if args.checkpoint is not None:
+            checkpoint.save_trials(args.checkpoint, targets, cal.trials)
         if not args.quiet:
             if trial.stage == "tension":
                 what = f"sigma = {trial.measured:.4f} N/m, bulk {trial.bulk_density:.1f} kg/m^3"
@@ -446,7 +461,11 @@ def run_calibrate(args) -> int:
     status, error = "finished", ""
     try:
         calibrate(args.dx, args.theta, args.surface_tension, report=report, cal=cal,
-                  ridge_sizes=tuple(args.ridge_sizes))
+                  ridge_sizes=tuple(args.ridge_sizes), replay=replay,
+                  on_replayed=lambda: print(f"calibrate: resuming {str(args.checkpoint)!r} after {len(replay)} "
+                                            "trials", file=sys.stderr))
+    except ReplayMismatch as exc:
+        raise InputError(f"--checkpoint: {str(args.checkpoint)!r} holds another calibration's trials: {exc}") from None
     except (KeyboardInterrupt, SystemError) as exc:
         if not interrupted(exc):
             raise
@@ -458,13 +477,11 @@ def run_calibrate(args) -> int:
                "surface_tension_n_per_m": cal.surface_tension, "target_surface_tension_n_per_m": args.surface_tension,
                "bulk_density_kg_per_m3": cal.bulk_density, "contact_angle_deg": cal.contact_angle_deg,
                "target_contact_angle_deg": args.theta, "ridge_sizes_dx": list(args.ridge_sizes),
-               "anneal_m_per_s": args.anneal, "trials": len(cal.trials),
+               "anneal_m_per_s": args.anneal, "trials": len(cal.trials), "replayed_trials": len(replay),
                "steps": sum(t.steps for t in cal.trials), "wall_time_s": time.perf_counter() - start}
     if error:
         summary["error"] = error
-    config = {"run": {"command": f"{PROG} " + " ".join(args.argv), "case": "calibrate"},
-              "targets": {"dx_m": args.dx, "theta_deg": args.theta, "surface_tension_n_per_m": args.surface_tension,
-                          "c0_m_per_s": cal.c0, "ridge_sizes_dx": list(args.ridge_sizes), "anneal_m_per_s": args.anneal}}
+    config = {"run": {"command": f"{PROG} " + " ".join(args.argv), "case": "calibrate"}, "targets": targets}
     with atomic_run_directory(out) as tmp:
         write_toml(tmp / "config.toml", config)
         write_json(tmp / "summary.json", summary)

@@ -108,28 +108,52 @@ def ridge_angles(params: SphParameters, surface_tension: float, radius_cells: tu
     return tuple(angles), steps
 
 
+class ReplayMismatch(ValueError):
+    """A replayed trial is not the one this calibration asks for (another calibration's trials)."""
+
+
 def calibrate(dx: float, theta_deg: float, target_tension: float = droplet.SURFACE_TENSION, c0: float | None = None,
               report=None, cal: Calibration | None = None,
-              ridge_sizes: tuple[int, ...] = (DROP_RADIUS_CELLS,)) -> Calibration:
+              ridge_sizes: tuple[int, ...] = (DROP_RADIUS_CELLS,), replay: list[Trial] = (),
+              on_replayed=None) -> Calibration:
     """s_ff (and the EOS reference density) for ``target_tension``, then s_sf for ``theta_deg``, at
     resolution ``dx`` (module docstring), the angle being the mean over ridges of ``ridge_sizes``
-    dx starting radius. ``report(trial)`` is called after every trial; ``cal``, if given, is
-    filled in place (what an interrupted calibration had found). Raises RuntimeError when a stage
-    does not converge in :data:`MAX_TRIALS` trials."""
+    dx starting radius. ``report(trial)`` is called after every trial run; ``cal``, if given, is
+    filled in place (what an interrupted calibration had found). The trials of ``replay`` (an
+    earlier run of the same calibration, ``calibrate --checkpoint``) are taken as measured
+    instead of being run again: each step depends only on the trials before it, so the
+    calibration goes on exactly where that run stopped; ``on_replayed()`` is called once the last
+    of them has been taken. Raises RuntimeError when a stage does
+    not converge in :data:`MAX_TRIALS` trials, ReplayMismatch when a replayed trial's stage or
+    strengths are not the ones asked for."""
     cal = cal or Calibration(dx=dx, c0=sound_speed(dx) if c0 is None else c0)
 
-    def trial(*values):
-        cal.trials.append(Trial(*values))
-        if report is not None:
-            report(cal.trials[-1])
+    def trial(stage, s_ff, s_sf, rho0, measure):
+        """The trial at these strengths: the next replayed one, or ``measure()``'s (measured,
+        bulk density, steps, ridge angles)."""
+        k = len(cal.trials)
+        if k < len(replay):
+            done = replay[k]
+            if (done.stage, done.s_ff, done.s_sf, done.rho0_fluid) != (stage, s_ff, s_sf, rho0):
+                raise ReplayMismatch(f"trial {k + 1} was {done.stage} at s_ff = {done.s_ff!r}, s_sf = {done.s_sf!r}, "
+                                     f"rho0 = {done.rho0_fluid!r}; this calibration asks for {stage} at s_ff = "
+                                     f"{s_ff!r}, s_sf = {s_sf!r}, rho0 = {rho0!r}")
+            cal.trials.append(done)
+            if k + 1 == len(replay) and on_replayed is not None:
+                on_replayed()
+        else:
+            cal.trials.append(Trial(stage, s_ff, s_sf, rho0, *measure()))
+            if report is not None:
+                report(cal.trials[-1])
+        return cal.trials[-1]
 
     # 1. s_ff: log sigma against log s_ff through the last two trials; rho0 scaled each trial so
     #    that the bulk, compressed by cohesion, sits at water's density (Table 1's 930-950 < 1000)
     s, history = TENSION_FIRST_GUESS * dx, []
     for _ in range(MAX_TRIALS):
         rho0 = cal.rho0_fluid
-        sigma, bulk, steps = slab_tension(cal.parameters(s_ff=s, s_sf=0.0))
-        trial("tension", s, 0.0, rho0, sigma, bulk, steps)
+        slab = trial("tension", s, 0.0, rho0, lambda: slab_tension(cal.parameters(s_ff=s, s_sf=0.0)))
+        sigma, bulk = slab.measured, slab.bulk_density
         if not (sigma > 0.0 and math.isfinite(bulk)):
             raise RuntimeError(f"the slab at s_ff = {s:.4g} N measured sigma = {sigma:.4g} N/m, bulk {bulk:.4g} kg/m^3")
         history.append((math.log(s), math.log(max(sigma, 1e-12))))
@@ -151,10 +175,13 @@ def calibrate(dx: float, theta_deg: float, target_tension: float = droplet.SURFA
     target_cos = math.cos(math.radians(theta_deg))
     young = 2.0 / cal.s_ff  # d cos(theta) / d s_sf of Young's law with pairwise forces
     s_sf, history = cal.s_ff * (1.0 + target_cos) / 2.0, []
-    for _ in range(MAX_TRIALS):
+
+    def ridges():  # at the current s_sf
         angles, steps = ridge_angles(cal.parameters(s_sf=s_sf), cal.surface_tension, ridge_sizes)
-        angle = float(np.mean(angles))
-        trial("contact_angle", cal.s_ff, s_sf, cal.rho0_fluid, angle, math.nan, steps, angles)
+        return float(np.mean(angles)), math.nan, steps, angles
+
+    for _ in range(MAX_TRIALS):
+        angle = trial("contact_angle", cal.s_ff, s_sf, cal.rho0_fluid, ridges).measured
         if not math.isfinite(angle):
             raise RuntimeError(f"a drop at s_sf = {s_sf:.4g} N has no measurable cap")
         cos_now = math.cos(math.radians(angle))

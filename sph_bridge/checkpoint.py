@@ -9,6 +9,11 @@ sit beside it as ``particles_NNNN.vtu``, and ``progress.json`` says how far the 
 writing a checkpoint holds a lock on it (``.lock``), and a second run on it is refused. A
 checkpoint belongs to one drop and one relaxation protocol: its :func:`key` is stored and a
 command with another is refused.
+
+A calibration's checkpoint (``calibrate --checkpoint DIR``) is coarser: ``DIR/trials.json``
+holds its targets and the trials finished so far, replaced after each; the same command given
+again takes them as measured (:func:`sph_bridge.calibrate.calibrate`'s ``replay``) and runs on
+from the trial that was cut, under the same lock.
 """
 
 from __future__ import annotations
@@ -57,19 +62,19 @@ def key(sim: Simulation, t_min: float, volume: float, ridge: bool, start_height:
                       sort_keys=True)
 
 
-def check_directory(directory: Path, out: Path) -> None:
-    """Refuse a directory that is neither new nor a checkpoint (its files would be overwritten),
-    or one at or inside the run directory (which is written whole at the end). Frames and
-    hidden files (the lock, a temporary state) without a state are a checkpoint killed before
-    its first save."""
+def check_directory(directory: Path, out: Path, state: str = STATE) -> None:
+    """Refuse a directory that is neither new nor a checkpoint whose saved state is the file
+    ``state`` (its files would be overwritten), or one at or inside the run directory (which is
+    written whole at the end). Frames and hidden files (the lock, a temporary state) without a
+    state are a checkpoint killed before its first save."""
     directory, out = Path(directory).resolve(), Path(out).resolve()
     if directory == out or out in directory.parents:
         raise CheckpointError(f"{str(directory)!r} lies in the run directory --out; give one outside it")
     if directory.exists() and not directory.is_dir():
         raise CheckpointError(f"{str(directory)!r} is a file; give a directory (new or a checkpoint's)")
-    if directory.is_dir() and not (directory / STATE).exists() and any(
+    if directory.is_dir() and not (directory / state).exists() and any(
             not (p.name.startswith(".") or p.name.startswith("particles_")) for p in directory.iterdir()):
-        raise CheckpointError(f"{str(directory)!r} holds files but no {STATE}; give a new directory or a checkpoint's")
+        raise CheckpointError(f"{str(directory)!r} holds files but no {state}; give a new directory or a checkpoint's")
 
 
 def hold(directory: Path):
@@ -90,7 +95,7 @@ def hold(directory: Path):
             lock.close()
             raise
     except BlockingIOError:
-        raise CheckpointError(f"{str(directory)!r} is being written by a running droplet ({holder}); wait for it "
+        raise CheckpointError(f"{str(directory)!r} is being written by a running run ({holder}); wait for it "
                               "or stop it") from None
     except OSError as exc:
         print(f"warning: {str(directory)!r} is not locked against a second run ({exc.strerror})", file=sys.stderr)
@@ -167,3 +172,35 @@ def restore(directory: Path, key: str, sim: Simulation):
     sim.wall_start = time.perf_counter() - elapsed
     sim._bin()
     return shapes, rows, frame_times
+
+
+TRIALS = "trials.json"  # a calibration's checkpoint: its targets and the trials run so far
+
+
+def save_trials(directory: Path, targets: dict, trials: list) -> None:
+    """Replace ``DIR/trials.json`` atomically with the calibration's targets and its trials
+    (:class:`sph_bridge.calibrate.Trial`); floats round-trip exactly through JSON."""
+    text = json.dumps(json_safe({"targets": targets, "trials": [asdict(t) for t in trials]}), indent=2)
+    write_text_atomic(Path(directory) / TRIALS, text + "\n")
+
+
+def restore_trials(directory: Path, targets: dict) -> list:
+    """The trials a calibration with these ``targets`` saved in ``DIR`` (empty for a new
+    directory). Raises :class:`CheckpointError` for another calibration's, or an unreadable, file."""
+    from .calibrate import Trial
+
+    path = Path(directory) / TRIALS
+    if not path.exists():
+        return []
+    try:
+        saved = json.loads(path.read_text())
+        trials = [Trial(**{k: (np.nan if v is None else tuple(v) if isinstance(v, list) else v)
+                           for k, v in t.items()}) for t in saved["trials"]]
+        stored = saved["targets"]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise CheckpointError(f"{str(path)!r} cannot be read ({exc.__class__.__name__}: {exc})") from None
+    if stored != json_safe(targets):
+        differ = ", ".join(f"{k} {stored.get(k)!r} (now {v!r})" for k, v in json_safe(targets).items()
+                           if stored.get(k) != v)
+        raise CheckpointError(f"{str(directory)!r} is the checkpoint of another calibration: {differ}")
+    return trials

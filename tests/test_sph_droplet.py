@@ -379,6 +379,32 @@ def test_droplet_bad_input_is_one_line(tmp_path):
         assert not bad.exists()
 
 
+def stand_in_calibration_trials(monkeypatch, measured=None):
+    """Stand-in slab and ridge responses shaped like the measured ones: sigma ~ s_ff^1.5 with the
+    bulk compressed by cohesion (1.054 rho0 at s_ff = 1e-6 N), and cos(theta) linear in s_sf.
+    Each call is passed to ``measured`` first, if given."""
+    import signal
+
+    from sph_bridge import calibrate as cal_mod
+
+    def slab(params, progress=None):
+        if measured is not None:
+            measured("tension")
+        sigma = 0.0742 * (params.s_ff / 1e-6) ** 1.55 * (params.rho0_fluid / 1000.0) ** 2
+        return sigma, params.rho0_fluid * (1.0 + 0.054 * params.s_ff / 1e-6), 843
+
+    def drop(params, sigma, progress=None, radius_cells=cal_mod.DROP_RADIUS_CELLS):
+        if measured is not None:
+            measured("contact_angle")
+        cos_theta = min(1.0, -1.0 + 1.9 * params.s_sf / params.s_ff)
+        theta = math.degrees(math.acos(cos_theta))
+        return droplet.DropShape(1e-3, 3e-3, theta, theta, 2e-3, 0.0, 1e-5), 3500
+
+    monkeypatch.setattr(signal, "signal", lambda *args: None)  # the CLI's SIGTERM handler stays out of pytest
+    monkeypatch.setattr(cal_mod, "slab_tension", slab)
+    monkeypatch.setattr(cal_mod, "zero_gravity_drop", drop)
+
+
 def test_calibration_search_converges_on_model_responses(monkeypatch, tmp_path):
     # the search logic on stand-in responses shaped like the measured ones: sigma ~ s_ff^1.5
     # with the bulk compressed by cohesion (1.054 rho0 at s_ff = 1e-6 N), and cos(theta) linear
@@ -386,20 +412,7 @@ def test_calibration_search_converges_on_model_responses(monkeypatch, tmp_path):
     from sph_bridge import __main__ as cli
     from sph_bridge import calibrate as cal_mod
 
-    def slab(params, progress=None):
-        sigma = 0.0742 * (params.s_ff / 1e-6) ** 1.55 * (params.rho0_fluid / 1000.0) ** 2
-        return sigma, params.rho0_fluid * (1.0 + 0.054 * params.s_ff / 1e-6), 843
-
-    def drop(params, sigma, progress=None, radius_cells=cal_mod.DROP_RADIUS_CELLS):
-        cos_theta = min(1.0, -1.0 + 1.9 * params.s_sf / params.s_ff)
-        theta = math.degrees(math.acos(cos_theta))
-        return droplet.DropShape(1e-3, 3e-3, theta, theta, 2e-3, 0.0, 1e-5), 3500
-
-    import signal
-
-    monkeypatch.setattr(signal, "signal", lambda *args: None)  # the CLI's SIGTERM handler stays out of pytest
-    monkeypatch.setattr(cal_mod, "slab_tension", slab)
-    monkeypatch.setattr(cal_mod, "zero_gravity_drop", drop)
+    stand_in_calibration_trials(monkeypatch)
     trials = []
     cal = cal_mod.calibrate(5e-4, THETA, report=trials.append)
     assert cal.surface_tension == pytest.approx(0.072, rel=cal_mod.SIGMA_TOLERANCE)
@@ -412,6 +425,64 @@ def test_calibration_search_converges_on_model_responses(monkeypatch, tmp_path):
     assert summary["status"] == "finished" and summary["s_ff_n"] == pytest.approx(cal.s_ff)
     rows = (out / "timeseries.csv").read_text().splitlines()
     assert len(rows) == summary["trials"] + 1 and rows[0].startswith("stage,")
+
+
+def test_a_killed_calibration_goes_on_from_its_checkpoint_to_the_straight_runs_result(monkeypatch, tmp_path,
+                                                                                       capsys):
+    # calibrate --checkpoint DIR: the trials are saved as they finish; a run stopped during its
+    # 4th trial and given the same command again takes the 3 saved ones as measured, runs only the
+    # rest and finds what a run never stopped finds, trial for trial (stand-in responses)
+    from sph_bridge import __main__ as cli
+
+    calls, stop_at = [], 0
+
+    def measured(stage):
+        calls.append(stage)
+        if len(calls) == stop_at:
+            raise KeyboardInterrupt
+
+    stand_in_calibration_trials(monkeypatch, measured)
+    ck = tmp_path / "ck"
+
+    def run(name, *extra):
+        return cli.main(["calibrate", "--quiet", "--out", str(tmp_path / name), *extra])
+
+    assert run("straight") == 0
+    straight = len(calls)
+    assert straight >= 5 and {"tension", "contact_angle"} == set(calls)
+    calls.clear()
+    stop_at = 4
+    assert run("stopped", "--checkpoint", str(ck)) == 130
+    assert len(json.loads((ck / "trials.json").read_text())["trials"]) == 3
+    calls.clear()
+    stop_at = 0
+    capsys.readouterr()
+    assert run("resumed", "--checkpoint", str(ck)) == 0
+    assert "after 3 trials" in capsys.readouterr().err and len(calls) == straight - 3
+    calls.clear()
+    assert run("again", "--checkpoint", str(ck)) == 0 and not calls  # finished: nothing left to run
+    summaries = {n: json.loads((tmp_path / n / "summary.json").read_text()) for n in ("straight", "resumed", "again")}
+    for n in ("resumed", "again"):
+        for k in ("status", "s_ff_n", "s_sf_n", "rho0_fluid", "surface_tension_n_per_m", "contact_angle_deg",
+                  "trials", "steps"):
+            assert summaries[n][k] == summaries["straight"][k], (n, k)
+        assert (tmp_path / n / "timeseries.csv").read_text() == (tmp_path / "straight" / "timeseries.csv").read_text()
+    assert summaries["resumed"]["replayed_trials"] == 3 and summaries["straight"]["replayed_trials"] == 0
+    # another calibration's checkpoint, or a droplet's, is refused: one line, exit 2, nothing written
+    (tmp_path / "drop").mkdir()
+    (tmp_path / "drop" / "state.npz").write_bytes(b"")
+    saved = json.loads((ck / "trials.json").read_text())
+    saved["trials"][1]["s_ff"] *= 1.01  # trials another search made
+    (tmp_path / "moved").mkdir()
+    (tmp_path / "moved" / "trials.json").write_text(json.dumps(saved))
+    for extra, says in ((["--theta", "60", "--checkpoint", str(ck)], "theta_deg 65.16 (now 60.0)"),
+                        (["--checkpoint", str(tmp_path / "drop")], "no trials.json"),
+                        (["--checkpoint", str(tmp_path / "moved")], "trial 2 was tension")):
+        capsys.readouterr()
+        assert run("other", *extra) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--checkpoint" in err[0] and says in err[0], err
+        assert not (tmp_path / "other").exists()
 
 
 def test_calibration_sets_the_mean_angle_of_several_ridges(monkeypatch):
