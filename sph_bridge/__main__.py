@@ -262,6 +262,17 @@ def same_protocol(args, anneal: float, what: str) -> None:
     args.anneal = anneal
 
 
+def open_checkpoint(directory: Path, out: Path, state: str, restore):
+    """Check and lock a ``--checkpoint`` directory whose saved state is the file ``state``, and
+    read it: (the lock, to be held for the whole run, and what ``restore()`` returns). A
+    directory that is no such checkpoint, or that another run holds, is bad input."""
+    try:
+        checkpoint.check_directory(directory, out, state=state)
+        return checkpoint.hold(directory), restore()
+    except (checkpoint.CheckpointError, OSError) as exc:
+        raise InputError(f"--checkpoint: {exc}") from None
+
+
 def run_droplet(args) -> int:
     if args.volume / args.dx**3 < MIN_DROP_CELLS:
         raise InputError(f"--volume: {args.volume:g} m^3 is {args.volume / args.dx**3:.0f} particles at dx = "
@@ -280,12 +291,8 @@ def run_droplet(args) -> int:
     key = None
     if args.checkpoint is not None:
         key = checkpoint.key(sim, t_min, args.volume, args.ridge, args.start_height)
-        try:
-            checkpoint.check_directory(args.checkpoint, out)
-            lock = checkpoint.hold(args.checkpoint)  # noqa: F841 (held until this run ends)
-            restored = checkpoint.restore(args.checkpoint, key, sim)
-        except (checkpoint.CheckpointError, OSError) as exc:
-            raise InputError(f"--checkpoint: {exc}") from None
+        lock, restored = open_checkpoint(args.checkpoint, out, checkpoint.STATE,  # noqa: F841 (held to the end)
+                                         lambda: checkpoint.restore(args.checkpoint, key, sim))
         if restored is not None:
             shapes, rows, frame_times = restored
             frames = [(t, checkpoint.frame_path(args.checkpoint, k)) for k, t in enumerate(frame_times)]
@@ -371,7 +378,7 @@ def droplet_summary(args, sim, shape, sigma, source, status) -> dict:
                "young_laplace_height_m": yl_height, "young_laplace_width_m": yl_width,
                "height_error": shape.height / yl_height - 1.0,
                "plate_half_width_m": droplet.plate_half_width(sim),
-               "plate_edge_clearance_m": droplet.plate_half_width(sim) - shape.width / 2}
+               "plate_edge_clearance_m": droplet.plate_edge_clearance(sim, shape, args.ridge)}
     if g > 0:
         puddle = droplet.puddle_height(sigma, rho, g, args.theta)
         summary.update({"capillary_length_m": lam, "puddle_height_m": puddle,
@@ -428,25 +435,22 @@ def side_view(path: Path, sim, shape, summary: dict, ridge: bool) -> None:
 
 
 def run_calibrate(args) -> int:
-    from .calibrate import Calibration, ReplayMismatch, calibrate, sound_speed
+    from .calibrate import Calibration, ReplayMismatch, calibrate, protocol, sound_speed
 
     out = new_run_directory(args.out, args.command)
     cal = Calibration(dx=args.dx, c0=args.c0 or sound_speed(args.dx), anneal=args.anneal)
     targets = {"dx_m": args.dx, "theta_deg": args.theta, "surface_tension_n_per_m": args.surface_tension,
                "c0_m_per_s": cal.c0, "ridge_sizes_dx": list(args.ridge_sizes), "anneal_m_per_s": args.anneal}
+    identity = {**targets, **{f"protocol.{name}": value for name, value in protocol().items()}}
     replay = []
     if args.checkpoint is not None:
-        try:
-            checkpoint.check_directory(args.checkpoint, out, state=checkpoint.TRIALS)
-            lock = checkpoint.hold(args.checkpoint)  # noqa: F841 (held until this run ends)
-            replay = checkpoint.restore_trials(args.checkpoint, targets)
-        except (checkpoint.CheckpointError, OSError) as exc:
-            raise InputError(f"--checkpoint: {exc}") from None
+        lock, replay = open_checkpoint(args.checkpoint, out, checkpoint.TRIALS,  # noqa: F841 (held to the end)
+                                       lambda: checkpoint.restore_trials(args.checkpoint, identity))
     start = time.perf_counter()
 
     def report(trial):
         if args.checkpoint is not None:
-            checkpoint.save_trials(args.checkpoint, targets, cal.trials)
+            checkpoint.save_trials(args.checkpoint, identity, cal.trials)
         if not args.quiet:
             if trial.stage == "tension":
                 what = f"sigma = {trial.measured:.4f} N/m, bulk {trial.bulk_density:.1f} kg/m^3"
@@ -462,16 +466,19 @@ def run_calibrate(args) -> int:
     try:
         calibrate(args.dx, args.theta, args.surface_tension, report=report, cal=cal,
                   ridge_sizes=tuple(args.ridge_sizes), replay=replay,
-                  on_replayed=lambda: print(f"calibrate: resuming {str(args.checkpoint)!r} after {len(replay)} "
-                                            "trials", file=sys.stderr))
+                  on_replayed=lambda: print(f"calibrate: took the {len(replay)} trials saved in "
+                                            f"{str(args.checkpoint)!r}", file=sys.stderr))
     except ReplayMismatch as exc:
-        raise InputError(f"--checkpoint: {str(args.checkpoint)!r} holds another calibration's trials: {exc}") from None
+        raise InputError(f"--checkpoint: {str(args.checkpoint)!r}: {exc}") from None
     except (KeyboardInterrupt, SystemError) as exc:
         if not interrupted(exc):
             raise
         status = "interrupted"
     except RuntimeError as exc:
         status, error = "not_converged", str(exc)
+    if len(cal.trials) < len(replay):
+        raise InputError(f"--checkpoint: {str(args.checkpoint)!r}: this search ended after {len(cal.trials)} of its "
+                         f"{len(replay)} trials: another version's search?")
     summary = {"case": "calibrate", "status": status, "dx_m": args.dx, "c0_m_per_s": cal.c0,
                "rho0_fluid": cal.rho0_fluid, "s_ff_n": cal.s_ff, "s_sf_n": cal.s_sf,
                "surface_tension_n_per_m": cal.surface_tension, "target_surface_tension_n_per_m": args.surface_tension,

@@ -108,6 +108,20 @@ def ridge_angles(params: SphParameters, surface_tension: float, radius_cells: tu
     return tuple(angles), steps
 
 
+def protocol() -> dict:
+    """The constants a calibration's trials depend on beyond its targets: the search's, the
+    slab's and the ridges' relaxation (a checkpoint's trials are replayed only under the same)."""
+    from . import tension
+
+    names = {"calibrate": ("SIGMA_TOLERANCE", "ANGLE_TOLERANCE_DEG", "MAX_TRIALS", "DENSITY_TOLERANCE",
+                           "TENSION_FIRST_GUESS", "SLAB_PERIODS"),
+             "tension": ("SLAB_SIDE", "JITTER", "SLAB_LAYERS"),
+             "droplet": ("RELAXATION_TIMES", "RIDGE_LENGTH", "SAMPLES", "SETTLE_WINDOW", "SETTLED", "MAX_EXTENSION",
+                         "ANNEAL_FRACTION")}
+    modules = {"calibrate": globals(), "tension": vars(tension), "droplet": vars(droplet)}
+    return {f"{m}.{name}": modules[m][name] for m, group in names.items() for name in group}
+
+
 class ReplayMismatch(ValueError):
     """A replayed trial is not the one this calibration asks for (another calibration's trials)."""
 
@@ -134,10 +148,12 @@ def calibrate(dx: float, theta_deg: float, target_tension: float = droplet.SURFA
         k = len(cal.trials)
         if k < len(replay):
             done = replay[k]
-            if (done.stage, done.s_ff, done.s_sf, done.rho0_fluid) != (stage, s_ff, s_sf, rho0):
-                raise ReplayMismatch(f"trial {k + 1} was {done.stage} at s_ff = {done.s_ff!r}, s_sf = {done.s_sf!r}, "
-                                     f"rho0 = {done.rho0_fluid!r}; this calibration asks for {stage} at s_ff = "
-                                     f"{s_ff!r}, s_sf = {s_sf!r}, rho0 = {rho0!r}")
+            same = all(math.isclose(a, b, rel_tol=1e-12)  # another libm may differ in the last bit
+                       for a, b in ((done.s_ff, s_ff), (done.s_sf, s_sf), (done.rho0_fluid, rho0)))
+            if done.stage != stage or not same:
+                raise ReplayMismatch(f"its trial {k + 1} ({done.stage} at s_ff = {done.s_ff!r}, s_sf = {done.s_sf!r}, "
+                                     f"rho0 = {done.rho0_fluid!r}) is not the one this search asks for ({stage} at "
+                                     f"s_ff = {s_ff!r}, s_sf = {s_sf!r}, rho0 = {rho0!r}): another version's search?")
             cal.trials.append(done)
             if k + 1 == len(replay) and on_replayed is not None:
                 on_replayed()

@@ -1,4 +1,5 @@
-"""Checkpoints of a droplet relaxation (``droplet --checkpoint DIR``): a run that was killed,
+"""Checkpoints of long runs: a droplet relaxation (``droplet --checkpoint DIR``) or a calibration
+(``calibrate --checkpoint DIR``). A droplet run that was killed,
 stopped or ran out of its batch slot goes on from its last shape sample when the same command
 is given again (with a new ``--out``), and ends where a straight run would (the particles, the
 step, the random stream of the annealing kicks and the samples taken are restored exactly).
@@ -20,6 +21,7 @@ from __future__ import annotations
 
 import fcntl
 import json
+import math
 import os
 import socket
 import sys
@@ -45,7 +47,8 @@ ARRAYS = ("pos", "vel", "acc", "rho", "pressure", "number_density")
 
 
 class CheckpointError(ValueError):
-    """The directory is not a checkpoint of this drop's relaxation."""
+    """The directory is not a checkpoint of this run (another drop, protocol or calibration), or
+    another run holds it."""
 
 
 def key(sim: Simulation, t_min: float, volume: float, ridge: bool, start_height: float | None) -> str:
@@ -79,8 +82,8 @@ def check_directory(directory: Path, out: Path, state: str = STATE) -> None:
 
 def hold(directory: Path):
     """Create ``directory`` if needed and lock it for this process (released when the returned
-    file is closed or the process ends): two runs on one checkpoint would write the same
-    trajectory twice over, so the second is refused. Where the file system has no locks (some
+    file is closed or the process ends): two runs on one checkpoint would do the same work twice
+    over and write over each other, so the second is refused. Where the file system has no locks (some
     cluster mounts) or the lock file cannot be made, the run goes on unlocked with a warning
     (returns None)."""
     directory = Path(directory)
@@ -95,7 +98,7 @@ def hold(directory: Path):
             lock.close()
             raise
     except BlockingIOError:
-        raise CheckpointError(f"{str(directory)!r} is being written by a running run ({holder}); wait for it "
+        raise CheckpointError(f"{str(directory)!r} is being written by a running sph_bridge run ({holder}); wait for it "
                               "or stop it") from None
     except OSError as exc:
         print(f"warning: {str(directory)!r} is not locked against a second run ({exc.strerror})", file=sys.stderr)
@@ -185,17 +188,20 @@ def save_trials(directory: Path, targets: dict, trials: list) -> None:
 
 
 def restore_trials(directory: Path, targets: dict) -> list:
-    """The trials a calibration with these ``targets`` saved in ``DIR`` (empty for a new
-    directory). Raises :class:`CheckpointError` for another calibration's, or an unreadable, file."""
+    """The trials a calibration with these ``targets`` (its protocol's constants included) saved
+    in ``DIR`` (empty for a new directory). Raises :class:`CheckpointError` for another
+    calibration's, or an unreadable, file."""
     from .calibrate import Trial
+
+    def unsafe(v):  # json_safe's nulls back to NaN
+        return math.nan if v is None else tuple(map(unsafe, v)) if isinstance(v, list) else v
 
     path = Path(directory) / TRIALS
     if not path.exists():
         return []
     try:
         saved = json.loads(path.read_text())
-        trials = [Trial(**{k: (np.nan if v is None else tuple(v) if isinstance(v, list) else v)
-                           for k, v in t.items()}) for t in saved["trials"]]
+        trials = [Trial(**{k: unsafe(v) for k, v in t.items()}) for t in saved["trials"]]
         stored = saved["targets"]
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise CheckpointError(f"{str(path)!r} cannot be read ({exc.__class__.__name__}: {exc})") from None

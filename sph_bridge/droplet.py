@@ -314,6 +314,14 @@ def plate_half_width(sim: Simulation) -> float:
     return float(np.abs(sim.pos[~sim.fluid, 0]).max()) + sim.params.dx / 2
 
 
+def plate_edge_clearance(sim: Simulation, shape: DropShape, ridge: bool) -> float:
+    """Distance [m] from the contact line to the plate's nearest edge: the plate's half-width
+    less half the base width and the drop's drift off the axis (its fluid's mean x, and y on the
+    square plate of a round drop)."""
+    drift = np.abs(sim.pos[sim.fluid, :1 if ridge else 2].mean(axis=0)).max()
+    return plate_half_width(sim) - float(drift) - shape.width / 2
+
+
 THINNEST_FILM_CELLS = 2  # no plate is sized for a film thinner than this many dx
 
 

@@ -120,6 +120,22 @@ def test_pairwise_young_angle_errs_flat_of_the_calibrated_angles():
         assert young(entry.s_ff, entry.s_sf) < entry.contact_angle_deg - 5.0
 
 
+def test_plate_edge_clearance_counts_the_drops_drift():
+    # the contact line's distance from the nearest edge: half-width - drift - half the base width
+    params = SphParameters(dx=1e-3, c0=3.0, s_ff=4e-6, s_sf=3e-6, gravity=(0.0, 0.0, -9.81))
+    shape = droplet.DropShape(3e-3, 6e-3, 60.0, 60.0, 4e-3, 0.0, 0.0)
+    for ridge, shift in ((True, (3e-3, 5e-3, 0.0)), (False, (1e-3, -2e-3, 0.0))):
+        sim = droplet.sessile(params, 6e-7, ridge=ridge, plate_radius=0.03)
+        half = droplet.plate_half_width(sim)
+        assert half == pytest.approx(0.03, abs=1e-12)  # a whole number of dx: the plate ends where asked
+        drift = np.abs(sim.pos[sim.fluid, :2].mean(axis=0))
+        sim.pos[sim.fluid] += shift
+        moved = np.abs(sim.pos[sim.fluid, :2].mean(axis=0))
+        expected = half - (moved[0] if ridge else moved.max()) - 3e-3  # a ridge's y is periodic: no edge
+        assert droplet.plate_edge_clearance(sim, shape, ridge) == pytest.approx(expected, abs=1e-12)
+        assert (drift[0] if ridge else drift.max()) < 1e-12 and expected < half - 3e-3 - 9e-4  # it did drift
+
+
 def test_explicit_strengths_size_the_plate_for_their_young_angle(monkeypatch, tmp_path, capsys):
     # droplet --s-ff/--s-sf (no calibration): the plate holds the Young angle of the strengths
     # where that is flatter than --theta, and summary.json says so (decisions #63); a short
@@ -148,7 +164,9 @@ def test_explicit_strengths_size_the_plate_for_their_young_angle(monkeypatch, tm
         summary = json.loads((tmp_path / name / "summary.json").read_text())
         assert summary["plate_sized_for_deg"] == pytest.approx(sized_for)
         assert summary["plate_half_width_m"] == pytest.approx(plate_edge(sized_for), abs=1e-12)
-        assert summary["plate_edge_clearance_m"] == pytest.approx(summary["plate_half_width_m"] - summary["width_m"] / 2)
+        # less the drop's drift off the axis, under 0.1 dx in this short relaxation
+        assert summary["plate_edge_clearance_m"] == pytest.approx(summary["plate_half_width_m"] - summary["width_m"] / 2,
+                                                                  abs=1e-4)
     assert "warning" not in capsys.readouterr().err
     # a contact line within 2h of the edge is reported (here a plate made to end at the axis)
     monkeypatch.setattr(droplet, "plate_half_width", lambda sim: 0.0)
@@ -458,7 +476,7 @@ def test_a_killed_calibration_goes_on_from_its_checkpoint_to_the_straight_runs_r
     stop_at = 0
     capsys.readouterr()
     assert run("resumed", "--checkpoint", str(ck)) == 0
-    assert "after 3 trials" in capsys.readouterr().err and len(calls) == straight - 3
+    assert "took the 3 trials" in capsys.readouterr().err and len(calls) == straight - 3
     calls.clear()
     assert run("again", "--checkpoint", str(ck)) == 0 and not calls  # finished: nothing left to run
     summaries = {n: json.loads((tmp_path / n / "summary.json").read_text()) for n in ("straight", "resumed", "again")}
@@ -472,17 +490,46 @@ def test_a_killed_calibration_goes_on_from_its_checkpoint_to_the_straight_runs_r
     (tmp_path / "drop").mkdir()
     (tmp_path / "drop" / "state.npz").write_bytes(b"")
     saved = json.loads((ck / "trials.json").read_text())
-    saved["trials"][1]["s_ff"] *= 1.01  # trials another search made
-    (tmp_path / "moved").mkdir()
-    (tmp_path / "moved" / "trials.json").write_text(json.dumps(saved))
+    for name, edit in (("moved", lambda t: t[1].update(s_ff=t[1]["s_ff"] * 1.01)),  # trials another search made
+                       ("longer", lambda t: t.append(dict(t[-1])))):  # one that went on further
+        changed = json.loads(json.dumps(saved))
+        edit(changed["trials"])
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "trials.json").write_text(json.dumps(changed))
     for extra, says in ((["--theta", "60", "--checkpoint", str(ck)], "theta_deg 65.16 (now 60.0)"),
                         (["--checkpoint", str(tmp_path / "drop")], "no trials.json"),
-                        (["--checkpoint", str(tmp_path / "moved")], "trial 2 was tension")):
+                        (["--checkpoint", str(tmp_path / "moved")], "its trial 2 (tension"),
+                        (["--checkpoint", str(tmp_path / "longer")], "ended after")):
         capsys.readouterr()
         assert run("other", *extra) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and "--checkpoint" in err[0] and says in err[0], err
         assert not (tmp_path / "other").exists()
+    # and so is one saved under another protocol (a constant its trials depend on changed)
+    from sph_bridge import calibrate as cal_mod
+
+    monkeypatch.setattr(cal_mod, "SLAB_PERIODS", cal_mod.SLAB_PERIODS + 1)
+    capsys.readouterr()
+    assert run("other", "--checkpoint", str(ck)) == 2
+    assert "protocol.calibrate.SLAB_PERIODS" in capsys.readouterr().err and not (tmp_path / "other").exists()
+
+
+def test_a_calibration_that_found_no_cap_resumes_to_the_same_end(monkeypatch, tmp_path):
+    # a ridge with no readable cap (NaN angle) ends the search not converged; its checkpoint,
+    # NaN included, is replayed to the same end
+    from sph_bridge import __main__ as cli
+    from sph_bridge import calibrate as cal_mod
+
+    stand_in_calibration_trials(monkeypatch)
+    monkeypatch.setattr(cal_mod, "zero_gravity_drop", lambda *a, **k: (droplet.DropShape(*[math.nan] * 7), 10))
+    ends = []
+    for name in ("first", "again"):
+        out = tmp_path / name
+        assert cli.main(["calibrate", "--quiet", "--out", str(out), "--checkpoint", str(tmp_path / "ck")]) == 1
+        ends.append(json.loads((out / "summary.json").read_text()))
+        assert (out / "timeseries.csv").read_text().splitlines()[-1].endswith(",nan")
+    assert ends[0]["status"] == ends[1]["status"] == "not_converged" and "no measurable cap" in ends[1]["error"]
+    assert ends[1]["replayed_trials"] == ends[0]["trials"] == ends[1]["trials"]
 
 
 def test_calibration_sets_the_mean_angle_of_several_ridges(monkeypatch):
