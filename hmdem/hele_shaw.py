@@ -64,6 +64,9 @@ def build_parser() -> argparse.ArgumentParser:
     rad.add_argument("--dem-cycles", type=positive_number,
                      help="DEM cycles per flow step (the paper: 2000); default: the stable DEM step")
     rad.add_argument("--pv-tol", type=positive_number, help="P-V iteration relative tolerance (default 1e-3)")
+    rad.add_argument("--pv-test", choices=("every", "inflow"),
+                     help="where |p_calc - p_trial| must be within the tolerance: in every domain (default, "
+                          "decisions #18) or in the inflow domains only, as seed 004 §3.2 tests it")
     rad.add_argument("--pv-max-iter", type=positive_number,
                      help="P-V iteration cap per attempt (default 12; 24 for B1)")
     rad.add_argument("--pv-grow-after", type=positive_number,
@@ -203,6 +206,7 @@ COUPLING_FLAGS = (
     ("dem_cycles", "dem_cycles_per_step", int),
     ("pv_tol", "pv_rtol", float),
     ("pv_max_iter", "pv_max_iter", int),
+    ("pv_test", "pv_test", str),
     ("pv_grow_after", "pv_easy_steps_to_grow", int),
     ("pocket_newton", "pv_pocket_newton", bool),
     ("pv_reuse_steps", "pv_reuse_steps", int),

@@ -460,3 +460,19 @@ def test_reuse_steps_reach_the_quasi_newton_update(small_sample):
         model.run()
         reused[reuse_steps] = sum(e.reused_pairs for e in model.pv_log)
     assert reused[5] > 0 and reused[0] == 0
+
+
+def test_inflow_pv_test_accepts_sooner_with_the_same_outcome(reduced_runs, small_sample):
+    # --pv-test inflow, seed 004 §3.2's test at the injection port only: a step is accepted at
+    # the first evaluation whose inflow domains match, so the reduced B3 needs fewer DEM cycles
+    # (3,119 against 3,447 on 2026-11-26) for the same regime, to within the issue's 15 % on its
+    # opened contacts, and the mass balance still closes to round-off
+    sc = build_radial_scenario(RADIAL_CASES["B3"], packing=small_sample)
+    sc.coupling.pv_test = "inflow"
+    model = CoupledFlowModel(sc.net, sc.setup, start_grains(sc), sc.coupling)
+    state, rec = model.run()
+    every_model, every_rec = reduced_runs["B3"][1], reduced_runs["B3"][3]
+    assert rec.status == every_rec.status == "breakthrough"
+    assert model.coupling_record.dem_cycles < every_model.coupling_record.dem_cycles
+    assert abs(model.opened.sum() - every_model.opened.sum()) <= 0.15 * every_model.opened.sum()
+    assert rec.max_mass_balance_error < 1e-10
