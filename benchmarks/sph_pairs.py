@@ -56,7 +56,7 @@ def main(argv=None) -> None:
         t1 = time.perf_counter()
         p = pressure(rho, np.full(n, 1000.0), 1.5)
         acc = accelerations(pos, np.zeros((n, 3)), mass, rho, p, np.full(n, 1e-3), np.ones(n, bool), 3e-5, 8e-6, h,
-                            np.zeros(3), cell, order, start, grid.neighbours, grid.shifts)
+                            np.zeros(3), cell, order, start, grid.neighbours, grid.shifts, grid.forward)
         t2 = time.perf_counter()
         return t1 - t0, t2 - t1, acc
 

@@ -5,7 +5,10 @@ lists with a prefix-sum layout, gathered per particle).
 Cells are at least ``cell_size`` wide; pairs within ``reach`` cell widths are found through the
 table. The table lists the 3^3 cells of the inner shell first, so a search over r < cell_size
 (the SPH kernel support h) stops after :attr:`CellGrid.inner` columns, while one over
-r < reach x cell_size (the pairwise force, 2h) uses them all. Periodic axes wrap, with the image
+r < reach x cell_size (the pairwise force, 2h) uses them all. The first column is the cell
+itself, and :attr:`CellGrid.forward` marks the half of the others whose offset is
+lexicographically positive: a sum that takes each pair once (Newton's third law) visits the
+cell itself (partners later in it) and the forward columns only. Periodic axes wrap, with the image
 shift stored per table entry; along other axes particles outside the box go to the edge cells
 (only the search's efficiency suffers). Memory is linear in the number of cells and particles.
 """
@@ -37,6 +40,8 @@ class CellGrid:
         self.reach = reach
         offsets = sorted(itertools.product(range(-reach, reach + 1), repeat=3), key=lambda o: max(map(abs, o)))
         self.inner = 27 if reach >= 1 else 1
+        # offset o pairs with -o: the forward half holds one of each (the cell itself comes first)
+        self.forward = np.array([o > (0, 0, 0) for o in offsets], bool)
         self.neighbours, self.shifts = self._table(np.array(offsets, np.int64))
 
     @property

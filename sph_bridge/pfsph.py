@@ -1,13 +1,13 @@
 """PF-SPH particle sums (seed 000 §2.3-2.9): density, pressure, and the accelerations from the
-pressure, viscous and pairwise interaction forces, gathered per particle over a cell list.
+pressure, viscous and pairwise interaction forces, summed over a cell list.
 
-Every function loops over particles in parallel (numba ``prange``) and over the neighbour cells
-of :class:`sph_bridge.cells.CellGrid`; no pair list is stored, so memory stays linear in N.
+The sums loop over particles in parallel (numba ``prange``) and over the neighbour cells of
+:class:`sph_bridge.cells.CellGrid`; no pair list is stored, so memory stays linear in N.
 The loops read copies of the particle arrays in cell order (``a[order]``), so that a cell's
 particles are adjacent in memory: as a drop stirs, the particles' own order loses all relation
 to their place, and gathering through ``order`` cost the force sum 1.75x its time on the 2e-4 m
-puddle. A particle's neighbours are summed in the same order either way, so the sums are the
-same to the bit.
+puddle. The density is gathered per particle; the forces are evaluated once per pair
+(:func:`accelerations`).
 Particles are fluid (``fluid`` True) or fixed wall particles. Pair terms are antisymmetric in
 (i, j), so with fluid only they conserve momentum to round-off (digest §7 #4).
 """
@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import get_num_threads, njit, prange
 
 from .cells import separation
 from .kernel import INTERACTION_RANGE, interaction_shape, wendland, wendland_gradient_over_r
@@ -78,9 +78,17 @@ def pair_force_over_r(i, j, r, h, mass, rho, pressure, fluid, s_ff, s_sf):
     return f
 
 
-@njit(parallel=True, cache=True)
+def work_chunks(fluid, n_chunks):
+    """Bounds of ``n_chunks`` runs of consecutive particles (in cell order) with about equal work
+    for :func:`accelerations`: a fluid particle scans its forward cells and evaluates its pairs,
+    a wall particle only scans them for fluid partners (counted as a quarter of the work)."""
+    weight = np.where(fluid, 1.0, 0.25).cumsum()
+    bounds = np.searchsorted(weight, weight[-1] * np.arange(1, n_chunks) / n_chunks) if len(weight) else []
+    return np.concatenate([[0], np.asarray(bounds, np.int64), [len(fluid)]]).astype(np.int64)
+
+
 def accelerations(pos, vel, mass, rho, pressure, viscosity, fluid, s_ff, s_sf, h, gravity,
-                  cell, order, start, neighbours, shifts):
+                  cell, order, start, neighbours, shifts, forward):
     """dv_i/dt of every fluid particle (0 for walls), seed 000 Eq. 11:
 
     - pressure, Eq. 16 with the sign restored (digest §2.5): -sum_j m_j (P_i/rho_i^2 + P_j/rho_j^2) grad_i W_ij;
@@ -91,40 +99,67 @@ def accelerations(pos, vel, mass, rho, pressure, viscosity, fluid, s_ff, s_sf, h
 
     ``vel`` is the velocity the forces see: the extrapolated v-bar of the Verlet scheme for fluid
     particles and the Eq. 25 extrapolation for walls (digest §2.10, §2.9b).
+
+    Each pair with a fluid particle in it is evaluated once and its force given to both (Newton's
+    third law; the pair terms are antisymmetric), which halves the work of a gather over both
+    particles' neighbourhoods. Particles are split into :func:`work_chunks`, max(4, threads) of
+    them, each summing into its own force array; the arrays are added in a fixed order, so the
+    result does not depend on the number of threads up to 4.
     """
-    n = pos.shape[0]
-    acc = np.zeros((n, 3))
+    order = np.asarray(order)
+    n_chunks = max(4, get_num_threads())
+    bounds = work_chunks(np.asarray(fluid)[order], n_chunks)
+    force = np.zeros((n_chunks, len(order), 3))
+    pair_forces(pos, vel, mass, rho, pressure, viscosity, fluid, s_ff, s_sf, h, cell, order, start, neighbours,
+                shifts, forward, bounds, force)
+    acc = np.zeros((len(order), 3))
+    acc[order] = force.sum(axis=0) / np.asarray(mass)[order, None]
+    acc[fluid] += gravity
+    acc[~np.asarray(fluid, bool)] = 0.0
+    return acc
+
+
+@njit(parallel=True, cache=True)
+def pair_forces(pos, vel, mass, rho, pressure, viscosity, fluid, s_ff, s_sf, h, cell, order, start, neighbours,
+                shifts, forward, bounds, force):
+    """Add the pressure, viscous and pairwise forces of every pair with a fluid particle in it to
+    ``force[chunk]`` (in cell order), each pair once: from the particle whose chunk, in
+    :func:`accelerations`' split ``bounds``, holds the one that finds the other in a forward
+    column (or later in its own cell)."""
     cutoff2 = (INTERACTION_RANGE * h) ** 2
     h2 = h * h
     # in cell order (module docstring); i and j below index these copies
     pos, vel, mass, rho = pos[order], vel[order], mass[order], rho[order]
     pressure, viscosity, fluid = pressure[order], viscosity[order], fluid[order]
-    for i in prange(n):
-        if not fluid[i]:
-            continue
-        c = cell[order[i]]
-        ax, ay, az = gravity[0], gravity[1], gravity[2]
-        for k in range(neighbours.shape[1]):
-            nc = neighbours[c, k]
-            if nc < 0:
-                continue
-            for j in range(start[nc], start[nc + 1]):
-                if j == i:
+    for chunk in prange(len(bounds) - 1):
+        out = force[chunk]
+        for i in range(bounds[chunk], bounds[chunk + 1]):
+            c = cell[order[i]]
+            for k in range(neighbours.shape[1]):
+                nc = neighbours[c, k]
+                if nc < 0 or not (k == 0 or forward[k]):
                     continue
-                dx, dy, dz, r2 = separation(pos, i, j, shifts[c, k])
-                if r2 >= cutoff2 or r2 == 0.0:
-                    continue
-                r = math.sqrt(r2)
-                f = pair_force_over_r(i, j, r, h, mass, rho, pressure, fluid, s_ff, s_sf) / mass[i]
-                if r2 < h2:
-                    grad = wendland_gradient_over_r(r, h)  # grad_i W_ij = (dx, dy, dz) * grad
-                    visc = mass[j] * (viscosity[i] + viscosity[j]) / (rho[i] * rho[j]) * grad
-                    ax += visc * (vel[i, 0] - vel[j, 0])
-                    ay += visc * (vel[i, 1] - vel[j, 1])
-                    az += visc * (vel[i, 2] - vel[j, 2])
-                ax += f * dx
-                ay += f * dy
-                az += f * dz
-        own = order[i]  # i in the caller's arrays
-        acc[own, 0], acc[own, 1], acc[own, 2] = ax, ay, az
-    return acc
+                first = i + 1 if k == 0 else start[nc]  # column 0 is the cell itself: later partners only
+                for j in range(first, start[nc + 1]):
+                    if not (fluid[i] or fluid[j]):
+                        continue
+                    dx, dy, dz, r2 = separation(pos, i, j, shifts[c, k])
+                    if r2 >= cutoff2 or r2 == 0.0:
+                        continue
+                    r = math.sqrt(r2)
+                    # the force on the fluid one of the pair, seen from it; along r_i - r_j on i
+                    f = pair_force_over_r(i, j, r, h, mass, rho, pressure, fluid, s_ff, s_sf) if fluid[i] else \
+                        pair_force_over_r(j, i, r, h, mass, rho, pressure, fluid, s_ff, s_sf)
+                    fx, fy, fz = f * dx, f * dy, f * dz
+                    if r2 < h2:
+                        grad = wendland_gradient_over_r(r, h)  # grad_i W_ij = (dx, dy, dz) * grad
+                        visc = mass[i] * mass[j] * (viscosity[i] + viscosity[j]) / (rho[i] * rho[j]) * grad
+                        fx += visc * (vel[i, 0] - vel[j, 0])
+                        fy += visc * (vel[i, 1] - vel[j, 1])
+                        fz += visc * (vel[i, 2] - vel[j, 2])
+                    out[i, 0] += fx
+                    out[i, 1] += fy
+                    out[i, 2] += fz
+                    out[j, 0] -= fx
+                    out[j, 1] -= fy
+                    out[j, 2] -= fz

@@ -114,7 +114,7 @@ class Simulation:
                                              self.h, *self._lists(), g.inner)
         self.rho[walls] = density_from_pressure(self.pressure[walls], self.rho0[walls], p.c0, p.p0)
         return accelerations(self.pos, vel_seen, self.mass, self.rho, self.pressure, self.mu, self.fluid, p.s_ff,
-                             p.s_sf, self.h, self.gravity, *self._lists())
+                             p.s_sf, self.h, self.gravity, *self._lists(), g.forward)
 
     def stable_step(self) -> float:
         """min of Eq. 30 (0.25 h / (3 c0)), Eq. 31 (0.25 min sqrt(h / (3 |a|))) and the viscous
