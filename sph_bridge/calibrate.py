@@ -139,8 +139,27 @@ def calibrate(dx: float, theta_deg: float, target_tension: float = droplet.SURFA
     calibration goes on exactly where that run stopped; ``on_replayed()`` is called once the last
     of them has been taken. Raises RuntimeError when a stage does
     not converge in :data:`MAX_TRIALS` trials, ReplayMismatch when a replayed trial's stage or
-    strengths are not the ones asked for."""
+    strengths are not the ones asked for or the search ends before the replayed trials do."""
     cal = cal or Calibration(dx=dx, c0=sound_speed(dx) if c0 is None else c0)
+    try:
+        search(cal, dx, theta_deg, target_tension, report, ridge_sizes, replay, on_replayed)
+    except RuntimeError:
+        unused_replay(cal, replay)
+        raise
+    unused_replay(cal, replay)
+    return cal
+
+
+def unused_replay(cal: Calibration, replay: list[Trial]) -> None:
+    """Refuse replayed trials the search did not ask for (it ended before them)."""
+    if len(cal.trials) < len(replay):
+        raise ReplayMismatch(f"this search ended after {len(cal.trials)} of its {len(replay)} trials: another "
+                             "version's search?")
+
+
+def search(cal: Calibration, dx: float, theta_deg: float, target_tension: float, report,
+           ridge_sizes: tuple[int, ...], replay: list[Trial], on_replayed) -> None:
+    """:func:`calibrate`'s two stages (module docstring), filling ``cal``."""
 
     def trial(stage, s_ff, s_sf, rho0, measure):
         """The trial at these strengths: the next replayed one, or ``measure()``'s (measured,
@@ -190,7 +209,7 @@ def calibrate(dx: float, theta_deg: float, target_tension: float = droplet.SURFA
     # 2. s_sf: cos theta against s_sf through the last two trials
     target_cos = math.cos(math.radians(theta_deg))
     young = 2.0 / cal.s_ff  # d cos(theta) / d s_sf of Young's law with pairwise forces
-    s_sf, history = cal.s_ff * (1.0 + target_cos) / 2.0, []
+    s_sf, history = droplet.pairwise_young_s_sf(cal.s_ff, theta_deg), []
 
     def ridges():  # at the current s_sf
         angles, steps = ridge_angles(cal.parameters(s_sf=s_sf), cal.surface_tension, ridge_sizes)
@@ -212,4 +231,3 @@ def calibrate(dx: float, theta_deg: float, target_tension: float = droplet.SURFA
     else:
         raise RuntimeError(f"contact angle did not reach {theta_deg}° within {MAX_TRIALS} trials")
     cal.s_sf, cal.contact_angle_deg = s_sf, angle
-    return cal

@@ -308,6 +308,11 @@ def pairwise_young_angle_deg(s_ff: float, s_sf: float) -> float:
     return math.degrees(math.acos(min(1.0, max(-1.0, 2.0 * s_sf / s_ff - 1.0))))
 
 
+def pairwise_young_s_sf(s_ff: float, theta_deg: float) -> float:
+    """The inverse of :func:`pairwise_young_angle_deg`: s_sf = s_ff (1 + cos theta) / 2."""
+    return s_ff * (1.0 + math.cos(math.radians(theta_deg))) / 2.0
+
+
 def plate_half_width(sim: Simulation) -> float:
     """Distance [m] from the drop's axis to the plate's nearest edge, where its lattice cells end
     dx/2 beyond its outermost particles along x (the plate is square or, under a ridge, a strip)."""

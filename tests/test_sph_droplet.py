@@ -505,8 +505,14 @@ def test_a_killed_calibration_goes_on_from_its_checkpoint_to_the_straight_runs_r
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and "--checkpoint" in err[0] and says in err[0], err
         assert not (tmp_path / "other").exists()
-    # and so is one saved under another protocol (a constant its trials depend on changed)
+    # the Python API refuses replayed trials its search ends before, as the command does
     from sph_bridge import calibrate as cal_mod
+
+    found = cal_mod.calibrate(5e-4, 65.16)
+    with pytest.raises(cal_mod.ReplayMismatch, match="ended after"):
+        cal_mod.calibrate(5e-4, 65.16, replay=found.trials + found.trials[-1:])
+    assert len(cal_mod.calibrate(5e-4, 65.16, replay=found.trials).trials) == len(found.trials)
+    # and so is one saved under another protocol (a constant its trials depend on changed)
 
     monkeypatch.setattr(cal_mod, "SLAB_PERIODS", cal_mod.SLAB_PERIODS + 1)
     capsys.readouterr()
