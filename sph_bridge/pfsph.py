@@ -23,27 +23,44 @@ from .cells import separation
 from .kernel import INTERACTION_RANGE, interaction_shape, wendland, wendland_gradient_over_r
 
 
+@njit(inline="always")
+def summed_density(i, c, pos, mass, h, start, neighbours, shifts, inner):
+    """sum_j m_j W(r_ij, h) for particle i (cell-ordered arrays) in cell c."""
+    total = 0.0
+    h2 = h * h
+    for k in range(inner):
+        nc = neighbours[c, k]
+        if nc < 0:
+            continue
+        for j in range(start[nc], start[nc + 1]):
+            _, _, _, r2 = separation(pos, i, j, shifts[c, k])
+            if r2 < h2:
+                total += mass[j] * wendland(math.sqrt(r2), h)
+    return total
+
+
 @njit(parallel=True, cache=True)
 def density(pos, mass, h, cell, order, start, neighbours, shifts, inner):
     """rho_i = sum_j m_j W(r_ij, h) over every particle, itself and walls included (seed 000
     Eq. 15; digest §2.3: the sum runs over all N particles)."""
     n = pos.shape[0]
     rho = np.empty(n)
-    h2 = h * h
     pos, mass = pos[order], mass[order]  # in cell order (module docstring); i and j index these copies
     for i in prange(n):
-        c = cell[order[i]]
-        total = 0.0
-        for k in range(inner):
-            nc = neighbours[c, k]
-            if nc < 0:
-                continue
-            for j in range(start[nc], start[nc + 1]):
-                _, _, _, r2 = separation(pos, i, j, shifts[c, k])
-                if r2 < h2:
-                    total += mass[j] * wendland(math.sqrt(r2), h)
-        rho[order[i]] = total
+        rho[order[i]] = summed_density(i, cell[order[i]], pos, mass, h, start, neighbours, shifts, inner)
     return rho
+
+
+@njit(parallel=True, cache=True)
+def refresh_density(rho, dirty, pos, mass, h, cell, order, start, neighbours, shifts, inner):
+    """:func:`density` again, in place, for the particles in the cells marked ``dirty`` only: after a
+    few particles moved (a bounce-back), the cells within h of where they were and are now. The
+    others' sums hold none of them, so the result is the full sum's to the bit."""
+    pos, mass = pos[order], mass[order]  # in cell order (module docstring)
+    for i in prange(pos.shape[0]):
+        c = cell[order[i]]
+        if dirty[c]:
+            rho[order[i]] = summed_density(i, c, pos, mass, h, start, neighbours, shifts, inner)
 
 
 def pressure(rho: np.ndarray, rho0: np.ndarray, c0: float, p0: float = 0.0) -> np.ndarray:

@@ -5,9 +5,11 @@ One step, from positions r, velocities v and accelerations a at t:
 
 1. v_half = v + dt/2 a and the extrapolated v_bar = v + dt a (Eq. 29a with the missing dt
    restored, digest §8 item 7; Eq. 29b); r += dt v_half (Eq. 29c), wrapped on periodic axes.
-2. Bin; fluid particles with proximity ratio < 0.5 bounce back and stop (Eq. 24); bin again.
-3. Density by summation (Eq. 15) and pressure from the EOS (Eq. 13) for every particle, walls
-   with their own reference density (digest §2.9a, the consistent reading).
+2. Bin; density by summation (Eq. 15) for every particle, walls with their own reference
+   density (digest §2.9a, the consistent reading), and the proximity ratio, in one pass; fluid
+   particles with proximity ratio < 0.5 bounce back and stop (Eq. 24); bin again and sum the
+   densities again within h of them.
+3. Pressure from the EOS (Eq. 13).
 4. Wall velocities extrapolated from v_bar (Eq. 25); accelerations from v_bar (Eq. 11).
 5. v = v_half + dt/2 a (Eq. 29d); the next dt from Eqs. 30-32.
 
@@ -25,7 +27,7 @@ import numpy as np
 
 from .cells import CellGrid
 from .kernel import INTERACTION_RANGE, lattice_sum, support
-from .pfsph import accelerations, density, density_from_pressure, pressure
+from .pfsph import accelerations, density, density_from_pressure, pressure, refresh_density
 from .walls import bounce_back, proximity, wall_state
 
 GRAVITY = 9.81  # m/s^2 (not printed in seed 000; digest §2.8)
@@ -139,14 +141,20 @@ class Simulation:
         self.pos[f] += dt * v_half[f]
         self._wrap()
         self._bin()
-        rho = density(self.pos, self.mass, self.h, *self._lists(), self.grid.inner)
-        phi, normal, self.number_density = proximity(self.pos, f, self.h, self.bulk_number_density,
-                                                     *self._lists(), self.grid.inner)
+        rho, phi, normal, self.number_density = proximity(self.pos, self.mass, f, self.h, self.bulk_number_density,
+                                                          *self._lists(), self.grid.inner)
         bounced = bounce_back(self.pos, (v_half, v_bar), phi, normal, f, self.params.dx)
-        if bounced:
-            self._wrap()
+        if len(bounced):
+            was_in = self.cell[bounced]
+            self._wrap(bounced)  # the others stay to the bit where the densities saw them
             self._bin()
-        self.acc = self._accelerations(v_bar, None if bounced else rho)
+            # only the densities within h of a bounced particle's old or new place change
+            g = self.grid
+            near = g.neighbours[np.concatenate([was_in, self.cell[bounced]]), :g.inner]
+            dirty = np.zeros(g.n_cells, bool)
+            dirty[near[near >= 0]] = True
+            refresh_density(rho, dirty, self.pos, self.mass, self.h, *self._lists(), g.inner)
+        self.acc = self._accelerations(v_bar, rho)
         self.vel = v_half
         self.vel[f] += 0.5 * dt * self.acc[f]
         if self.params.damping:
@@ -155,7 +163,7 @@ class Simulation:
                 self._thermal_kicks(dt, self.params.anneal * (1.0 - self.t / self.anneal_end))
         self.t += dt
         self.record.steps += 1
-        self.record.bounced += bounced
+        self.record.bounced += len(bounced)
         self.dt = self.stable_step()
 
     def _thermal_kicks(self, dt: float, speed: float) -> None:
@@ -169,10 +177,11 @@ class Simulation:
         kicks -= kicks.mean(axis=0)
         self.vel[f] += speed * math.sqrt(1.0 - math.exp(-2.0 * self.params.damping * dt)) * kicks
 
-    def _wrap(self):
+    def _wrap(self, which=slice(None)):
+        """Put the particles ``which`` (default all) back into the box along periodic axes."""
         g = self.grid
         for a in np.flatnonzero(g.periodic):
-            self.pos[:, a] = g.lo[a] + np.mod(self.pos[:, a] - g.lo[a], g.length[a])
+            self.pos[which, a] = g.lo[a] + np.mod(self.pos[which, a] - g.lo[a], g.length[a])
 
     def run(self, t_end: float, record_every: float | None = None, progress=None) -> None:
         """Advance to ``t_end``; a row of :attr:`record` every ``record_every`` seconds."""

@@ -66,28 +66,33 @@ def wall_state(pos, vel, pressure, rho, fluid, gravity, h, cell, order, start, n
 
 
 @njit(parallel=True, cache=True)
-def proximity(pos, fluid, h, bulk_number, cell, order, start, neighbours, shifts, inner):
+def proximity(pos, mass, fluid, h, bulk_number, cell, order, start, neighbours, shifts, inner):
     """Per fluid particle, the proximity ratio phi = 1 - n_wall / n_bulk (0.5 on the nominal wall
     surface, 1 from h into the fluid) and the unit normal -grad n_wall / |grad n_wall| pointing
-    away from the wall; also the number density n = sum_j W_ij (fluid and wall).
+    away from the wall; also the number density n = sum_j W_ij (fluid and wall). And, from the
+    same neighbours, every particle's summation density rho = sum_j m_j W_ij (seed 000 Eq. 15),
+    the same to the bit as :func:`sph_bridge.pfsph.density`'s: a step needs both at the same
+    positions, and one pass over the neighbours costs less than two.
 
     Seed 000 Eqs. 18-23 take phi = n_fluid / n and the normal from the fluid colour gradient.
     Both equal these where the fluid fills the kernel (n_fluid + n_wall = n_bulk), but at a
     free surface or a contact line the missing fluid neighbours pull n_fluid / n below 0.5 on
     the first fluid layer, which then bounced every step and pinned the contact line (the
     truncation bias digest §2.9c mentions; decisions #35). Measuring the wall's share against
-    the bulk lattice value keeps the paper's flat-wall values (Eq. 21) everywhere."""
+    the bulk lattice value keeps the paper's flat-wall values (Eq. 21) everywhere.
+
+    Returns (rho, phi, normal, n)."""
     n = pos.shape[0]
+    rho = np.empty(n)
     phi = np.ones(n)
     normal = np.zeros((n, 3))
     number = np.zeros(n)
     h2 = h * h
-    pos, fluid = pos[order], fluid[order]  # in cell order (sph_bridge.pfsph's docstring); i and j index these
+    # in cell order (sph_bridge.pfsph's docstring); i and j index these copies
+    pos, mass, fluid = pos[order], mass[order], fluid[order]
     for i in prange(n):
-        if not fluid[i]:
-            continue
         c = cell[order[i]]
-        n_all, n_wall, gx, gy, gz = 0.0, 0.0, 0.0, 0.0, 0.0
+        total, n_all, n_wall, gx, gy, gz = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
         for k in range(inner):
             nc = neighbours[c, k]
             if nc < 0:
@@ -98,8 +103,9 @@ def proximity(pos, fluid, h, bulk_number, cell, order, start, neighbours, shifts
                     continue
                 r = math.sqrt(r2)
                 w = wendland(r, h)
+                total += mass[j] * w
                 n_all += w
-                if not fluid[j]:
+                if fluid[i] and not fluid[j]:
                     n_wall += w
                     # grad_i W_ij = r_ij (1/r) dW/dr points from i toward j: -grad n_wall points away
                     g = wendland_gradient_over_r(r, h)
@@ -107,22 +113,25 @@ def proximity(pos, fluid, h, bulk_number, cell, order, start, neighbours, shifts
                     gy -= g * dy
                     gz -= g * dz
         own = order[i]  # i in the caller's arrays
+        rho[own] = total
+        if not fluid[i]:
+            continue
         phi[own] = 1.0 - n_wall / bulk_number
         number[own] = n_all
         norm = math.sqrt(gx * gx + gy * gy + gz * gz)
         if norm > 0.0:
             normal[own, 0], normal[own, 1], normal[own, 2] = gx / norm, gy / norm, gz / norm
-    return phi, normal, number
+    return rho, phi, normal, number
 
 
 def bounce_back(pos, vel_list, phi, normal, fluid, dx):
     """Move fluid particles with phi < 0.5 by beta dx (1 - phi/0.5) along the normal into the
-    fluid and stop them (seed 000 Eq. 24); ``vel_list``: the velocity arrays to zero. Returns how
-    many bounced."""
+    fluid and stop them (seed 000 Eq. 24); ``vel_list``: the velocity arrays to zero. Returns the
+    indices of those that bounced."""
     inside = fluid & (phi < 0.5)
     if inside.any():
         pos[inside] += (BOUNCE_BACK_BETA * dx * (1.0 - phi[inside] / 0.5))[:, None] * normal[inside]
         for v in vel_list:
             v[inside] = 0.0
-    return int(inside.sum())
+    return np.flatnonzero(inside)
 

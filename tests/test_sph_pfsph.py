@@ -198,14 +198,16 @@ def test_proximity_ratio_and_normal_at_a_flat_wall():
     pos[first, 2] = -0.3 * dx
     cell, order, start = grid.bin(pos)
     lists = (cell, order, start, grid.neighbours, grid.shifts, grid.inner)
-    phi, normal, _ = proximity(pos, is_fluid, h, bulk, *lists)
+    mass = np.where(is_fluid, 1000.0, 1200.0) * dx**3
+    rho, phi, normal, _ = proximity(pos, mass, is_fluid, h, bulk, *lists)
+    assert np.array_equal(rho, density(pos, mass, h, *lists))  # the step's density, from the same pass
     deep = is_fluid & (pos[:, 2] > h + dx)
     assert np.allclose(phi[deep], 1.0)
     assert phi[first] < 0.5
     assert np.allclose(normal[first], [0, 0, 1], atol=1e-12)
     z_before = pos[first, 2]
     vel = np.ones((len(pos), 3))
-    assert bounce_back(pos, (vel,), phi, normal, is_fluid, dx) == 1
+    assert bounce_back(pos, (vel,), phi, normal, is_fluid, dx).tolist() == [first]
     assert pos[first, 2] - z_before == pytest.approx(dx * (1 - phi[first] / 0.5), rel=1e-12)
     assert np.all(vel[first] == 0) and np.all(vel[probe[1]] == 1)
     # on the nominal surface the wall is the mirror image of a fluid half-lattice, so its number
@@ -213,7 +215,7 @@ def test_proximity_ratio_and_normal_at_a_flat_wall():
     pos[first, 2] = 0.0
     cell, order, start = grid.bin(pos)
     lists = (cell, order, start, grid.neighbours, grid.shifts, grid.inner)
-    phi, _, _ = proximity(pos, is_fluid, h, bulk, *lists)
+    phi = proximity(pos, mass, is_fluid, h, bulk, *lists)[1]
     k = np.arange(-4, 5)
     i, j, k = np.meshgrid(k, k, k, indexing="ij")
     w = np.vectorize(wendland)(dx * np.sqrt(i**2 + j**2 + (k + 0.5) ** 2), h)
@@ -226,9 +228,27 @@ def test_proximity_ratio_and_normal_at_a_flat_wall():
     alone_fluid = np.zeros(len(alone), bool)
     alone_fluid[0] = True
     cell, order, start = grid.bin(alone)
-    phi_alone, _, _ = proximity(alone, alone_fluid, h, bulk, cell, order, start, grid.neighbours, grid.shifts,
-                                grid.inner)
+    phi_alone = proximity(alone, np.ones(len(alone)), alone_fluid, h, bulk, cell, order, start, grid.neighbours,
+                          grid.shifts, grid.inner)[1]
     assert phi_alone[0] == pytest.approx(phi[first], rel=1e-12)
+
+
+def test_a_step_with_bounces_sums_the_density_as_a_full_pass_would():
+    # a step re-sums the density only within h of the particles that bounced back (and wraps only
+    # them): what it ends with is, to the bit, the full sum at the final positions
+    from sph_bridge.simulation import Simulation, SphParameters
+
+    dx = 1e-3
+    pos, is_fluid, grid = flat_wall_scene(dx)
+    params = SphParameters(dx=dx, c0=2.0, s_ff=0.0, s_sf=0.0, gravity=(0.0, 0.0, -9.81))
+    sim = Simulation(pos[is_fluid], pos[~is_fluid], params, grid.lo, grid.lo + grid.length, (True, True, False))
+    low = np.flatnonzero(sim.fluid & (sim.pos[:, 2] < dx))[::7]
+    sim.vel[low, 2] = -0.9 * dx / sim.dt  # 0.4 dx into the wall in one step: they bounce
+    sim.step()
+    assert sim.record.bounced == len(low)
+    full = density(sim.pos, sim.mass, sim.h, sim.cell, sim.order, sim.start, sim.grid.neighbours, sim.grid.shifts,
+                   sim.grid.inner)
+    assert np.array_equal(sim.rho[sim.fluid], full[sim.fluid])
 
 
 def test_wall_particles_mirror_the_fluid_velocity():
