@@ -1,6 +1,6 @@
 """Cell lists for neighbour search: a fixed grid over the domain box, particles binned by a
 counting sort each step, and a per-cell table of neighbour cells (digest seed 000 §6: cell-linked
-lists with a prefix-sum layout, gathered per particle).
+lists with a prefix-sum layout).
 
 Cells are at least ``cell_size`` wide; pairs within ``reach`` cell widths are found through the
 table. The table lists the 3^3 cells of the inner shell first, so a search over r < cell_size

@@ -1,8 +1,9 @@
 """PF-SPH particle sums (seed 000 §2.3-2.9): density, pressure, and the accelerations from the
 pressure, viscous and pairwise interaction forces, summed over a cell list.
 
-The sums loop over particles in parallel (numba ``prange``) and over the neighbour cells of
-:class:`sph_bridge.cells.CellGrid`; no pair list is stored, so memory stays linear in N.
+The sums loop in parallel (numba ``prange``) over particles, or over runs of them, and over the
+neighbour cells of :class:`sph_bridge.cells.CellGrid`; no pair list is stored, so memory stays
+linear in N.
 The loops read copies of the particle arrays in cell order (``a[order]``), so that a cell's
 particles are adjacent in memory: as a drop stirs, the particles' own order loses all relation
 to their place, and gathering through ``order`` cost the force sum 1.75x its time on the 2e-4 m
@@ -17,7 +18,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import get_num_threads, njit, prange
+from numba import njit, prange
 
 from .cells import separation
 from .kernel import INTERACTION_RANGE, interaction_shape, wendland, wendland_gradient_over_r
@@ -95,6 +96,9 @@ def pair_force_over_r(i, j, r, h, mass, rho, pressure, fluid, s_ff, s_sf):
     return f
 
 
+FORCE_CHUNKS = 8  # runs of particles the force sum splits into: a fixed number, so its result is thread-free
+
+
 def work_chunks(fluid, n_chunks):
     """Bounds of ``n_chunks`` runs of consecutive particles (in cell order) with about equal work
     for :func:`accelerations`: a fluid particle scans its forward cells and evaluates its pairs,
@@ -119,14 +123,14 @@ def accelerations(pos, vel, mass, rho, pressure, viscosity, fluid, s_ff, s_sf, h
 
     Each pair with a fluid particle in it is evaluated once and its force given to both (Newton's
     third law; the pair terms are antisymmetric), which halves the work of a gather over both
-    particles' neighbourhoods. Particles are split into :func:`work_chunks`, max(4, threads) of
-    them, each summing into its own force array; the arrays are added in a fixed order, so the
-    result does not depend on the number of threads up to 4.
+    particles' neighbourhoods. Particles are split into :data:`FORCE_CHUNKS` :func:`work_chunks`,
+    each summing into its own force array (24 B per particle each); the arrays are added in a
+    fixed order, so the result is the same to the bit on any number of threads, and a checkpoint
+    resumes alike on another machine. More threads than chunks would idle in this sum.
     """
     order = np.asarray(order)
-    n_chunks = max(4, get_num_threads())
-    bounds = work_chunks(np.asarray(fluid)[order], n_chunks)
-    force = np.zeros((n_chunks, len(order), 3))
+    bounds = work_chunks(np.asarray(fluid)[order], FORCE_CHUNKS)
+    force = np.zeros((FORCE_CHUNKS, len(order), 3))
     pair_forces(pos, vel, mass, rho, pressure, viscosity, fluid, s_ff, s_sf, h, cell, order, start, neighbours,
                 shifts, forward, bounds, force)
     acc = np.zeros((len(order), 3))

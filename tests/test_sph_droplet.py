@@ -513,7 +513,6 @@ def test_a_killed_calibration_goes_on_from_its_checkpoint_to_the_straight_runs_r
         cal_mod.calibrate(5e-4, 65.16, replay=found.trials + found.trials[-1:])
     assert len(cal_mod.calibrate(5e-4, 65.16, replay=found.trials).trials) == len(found.trials)
     # and so is one saved under another protocol (a constant its trials depend on changed)
-
     monkeypatch.setattr(cal_mod, "SLAB_PERIODS", cal_mod.SLAB_PERIODS + 1)
     capsys.readouterr()
     assert run("other", "--checkpoint", str(ck)) == 2

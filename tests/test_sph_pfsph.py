@@ -235,17 +235,22 @@ def test_proximity_ratio_and_normal_at_a_flat_wall():
 
 def test_a_step_with_bounces_sums_the_density_as_a_full_pass_would():
     # a step re-sums the density only within h of the particles that bounced back (and wraps only
-    # them): what it ends with is, to the bit, the full sum at the final positions
+    # them): what it ends with is, to the bit, the full sum at the final positions. The box puts
+    # a cell boundary at z = -0.2 dx, which the bounced particles cross (-0.4 dx up to above it),
+    # so the cells whose particle order changed are among those re-summed
     from sph_bridge.simulation import Simulation, SphParameters
 
     dx = 1e-3
     pos, is_fluid, grid = flat_wall_scene(dx)
     params = SphParameters(dx=dx, c0=2.0, s_ff=0.0, s_sf=0.0, gravity=(0.0, 0.0, -9.81))
-    sim = Simulation(pos[is_fluid], pos[~is_fluid], params, grid.lo, grid.lo + grid.length, (True, True, False))
+    lo, hi = [0.0, 0.0, -3.7 * dx], [12 * dx, 12 * dx, 13.8 * dx]  # 5 cells of 3.5 dx along z
+    sim = Simulation(pos[is_fluid], pos[~is_fluid], params, lo, hi, (True, True, False))
+    assert sim.grid.cell_width[2] == pytest.approx(3.5 * dx)
     low = np.flatnonzero(sim.fluid & (sim.pos[:, 2] < dx))[::7]
     sim.vel[low, 2] = -0.9 * dx / sim.dt  # 0.4 dx into the wall in one step: they bounce
     sim.step()
     assert sim.record.bounced == len(low)
+    assert np.all(sim.pos[low, 2] > -0.2 * dx)  # back over the boundary they had crossed
     full = density(sim.pos, sim.mass, sim.h, sim.cell, sim.order, sim.start, sim.grid.neighbours, sim.grid.shifts,
                    sim.grid.inner)
     assert np.array_equal(sim.rho[sim.fluid], full[sim.fluid])
