@@ -128,15 +128,23 @@ def build_parser() -> OneLineParser:
     return parser
 
 
-def progress_bar(args, total: float, unit: str = "s"):
-    """A tqdm bar over simulated time (None with --quiet) and the callback that advances it."""
+def progress_bar(args, total: float, unit: str = "s", extend: float = 0.0):
+    """A tqdm bar over simulated time (None with --quiet) and the callback that advances it.
+    ``extend`` > 0: a run that goes on past ``total`` (a drop not settled by its minimum
+    duration) moves the bar's end on by this much at a time, so it never reads over 100 %."""
     if args.quiet:
         return None, None
     from tqdm import tqdm
 
     bar = tqdm(total=total, desc=args.command, unit=unit,
                bar_format="{l_bar}{bar}| {n:.4f}/{total:.4f} " + unit + " [{elapsed}<{remaining}]")
-    return bar, (lambda sim: bar.update(sim.t - bar.n))
+
+    def advance(sim):
+        if extend > 0 and sim.t > bar.total:
+            bar.total += extend * math.ceil((sim.t - bar.total) / extend)
+        bar.update(sim.t - bar.n)
+
+    return bar, advance
 
 
 def config_of(args, sim, **sections) -> dict:
@@ -298,8 +306,10 @@ def run_droplet(args) -> int:
             frames = [(t, checkpoint.frame_path(args.checkpoint, k)) for k, t in enumerate(frame_times)]
             print(f"droplet: resuming {str(args.checkpoint)!r} at t = {sim.t:.5g} s after {len(shapes)} shape "
                   f"samples ({sim.record.steps} steps)", file=sys.stderr)
-    # the bar runs to the shortest relaxation; one that has not settled by then runs on past it
-    bar, advance = progress_bar(args, droplet.minimum_samples(params.anneal > 0) * t_min / droplet.SAMPLES)
+    # the bar runs to the shortest relaxation; one that has not settled by then moves it on to its next settle check
+    interval = t_min / droplet.SAMPLES
+    bar, advance = progress_bar(args, droplet.minimum_samples(params.anneal > 0) * interval,
+                                extend=droplet.SETTLE_WINDOW * interval)
     status, settled = "finished", False
 
     def on_sample(s, k):
@@ -339,8 +349,12 @@ def run_droplet(args) -> int:
         write_frames(tmp, sim, frames)
         side_view(tmp / "side_view.png", sim, shape, summary, args.ridge)
     print(f"droplet: {status} after {sim.record.steps} steps; height {shape.height * 1e3:.3f} mm, width "
-          f"{shape.width * 1e3:.3f} mm, h/w {summary['aspect']:.4f}, contact angle "
+          f"{shape.width * 1e3:.3f} mm, h/w {summary['aspect']:.4f}, cap angle 2 atan(2h/w) "
           f"{shape.contact_angle_deg:.1f}° (target {args.theta:g}°)")
+    if summary.get("bond_number", 0.0) > 1.0:  # gravity flattens it: its h/w is no cap's, its height is the test
+        print(f"droplet: Bond number {summary['bond_number']:.1f}, a puddle: height against 2 λc sin(θ/2) = "
+              f"{summary['puddle_height_m'] * 1e3:.3f} mm ({summary['puddle_height_error']:+.1%}), Young-Laplace "
+              f"{summary['young_laplace_height_m'] * 1e3:.3f} mm")
     print(f"run directory: {out}")
     return exit_status(status)
 

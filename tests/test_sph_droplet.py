@@ -578,3 +578,17 @@ def test_shape_reading_of_a_lattice_block_on_a_wall():
     shape = droplet.measure(sim)
     assert shape.height == pytest.approx(6 * dx, abs=0.01 * dx)
     assert shape.width == pytest.approx(20 * dx, abs=0.01 * dx)
+
+
+def test_a_drop_running_past_its_minimum_duration_moves_the_bar_on(capsys):
+    # a relaxation not settled by its minimum duration goes on window by window: its bar's end
+    # moves to the next settle check, so it never reads past 100 % (with a negative time left)
+    from types import SimpleNamespace
+
+    from sph_bridge import __main__ as cli
+
+    bar, advance = cli.progress_bar(SimpleNamespace(quiet=False, command="droplet"), 1.0, extend=0.25)
+    for t, end in ((0.5, 1.0), (1.0, 1.0), (1.1, 1.25), (1.6, 1.75), (1.75, 1.75)):
+        advance(SimpleNamespace(t=t))
+        assert bar.n == t and bar.total == pytest.approx(end)
+    bar.close()
