@@ -32,6 +32,7 @@ from hmdem.coupling.pockets import PocketNewton, trapped_pockets  # noqa: E402
 from hmdem.cli import local_damping, non_negative_int, positive_int  # noqa: E402
 from hmdem.coupling.quasi_newton import InterfaceQuasiNewton  # noqa: E402
 from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, start_grains  # noqa: E402
+from hmdem.coupling.replica import DiscReplica  # noqa: E402
 from hmdem.dem.assembly import DiscAssembly  # noqa: E402
 
 GRAIN_FIELDS = ("radii", "ids", "fixed", "k_n", "k_s", "friction", "_index")
@@ -77,6 +78,11 @@ def resume(checkpoint: Path):
     # a checkpoint saved before contacts' opening times were kept: those already opened get nan
     model.__dict__.setdefault("opened_time", np.where(model.opened, np.nan, np.inf))
     model.__dict__.setdefault("wetted_time", np.where(data["state"].saturation > 0.0, np.nan, np.inf))
+    # a checkpoint saved before the replica (decisions #65): give it one, as a new run would have
+    c = model.coupling
+    model.__dict__.setdefault("_grains_moved", False)
+    if "replica" not in model.__dict__:
+        model.replica = DiscReplica.of(grains) if c.dem_replica and c.pv_rewind and not c.one_way else None
     return model, data["state"]
 
 
@@ -108,6 +114,7 @@ def log(checkpoint: Path, steps: int, out_csv: Path, pocket_newton: bool | None 
     pockets[trapped_pockets(state.invaded, state.saturation, model.pipe_a, model.pipe_b)] = True
     record = model.coupling_record  # cumulative: pickled with the run
     t0, halvings0, dem0, rewind0 = state.t, record.dt_halvings, record.dem_seconds, record.rewind_seconds
+    replica0 = record.replica_seconds  # a class default (0) in checkpoints saved before the replica
     model.setup.t_max = np.inf if span is None else state.t + span
     model.setup.max_steps = steps if span is None else 10**9
     start = time.perf_counter()
@@ -119,7 +126,8 @@ def log(checkpoint: Path, steps: int, out_csv: Path, pocket_newton: bool | None 
         writer.writerows(asdict(a).values() for a in attempts)
     print(f"t {t0:.6g} -> {state.t:.6g} s: {rec.steps} steps, {len(attempts)} evaluations, "
           f"{record.dt_halvings - halvings0} halvings, {time.perf_counter() - start:.0f} s "
-          f"(DEM {record.dem_seconds - dem0:.0f} s, DEM saves and rewinds {record.rewind_seconds - rewind0:.0f} s)")
+          f"(DEM {record.dem_seconds - dem0:.0f} s, replica {record.replica_seconds - replica0:.0f} s, "
+          f"DEM saves and rewinds {record.rewind_seconds - rewind0:.0f} s)")
     unconverged = [a for a in attempts if a.mismatch_over_tolerance > 1.0]
     worst = collections.Counter(a.worst_domain for a in unconverged)
     print(f"{len(unconverged)} evaluations above tolerance; the domains holding the largest mismatch:")

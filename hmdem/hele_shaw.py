@@ -85,6 +85,11 @@ def build_parser() -> argparse.ArgumentParser:
                      help="precondition the quasi-Newton update with the Newton step of the linearised grain "
                           "skeleton (hmdem/coupling/skeleton.py; default on, off for A3); --no-skeleton-newton "
                           "gives the plain quasi-Newton update")
+    rad.add_argument("--replica", action=argparse.BooleanOptionalAction, default=None,
+                     help="iterate the P-V map on a numba replica of the YADE disc scene and run YADE once per "
+                          "attempt at the converged pressures, keeping YADE's run when it passes the test "
+                          "(hmdem/coupling/replica.py, decisions #65; default on); --no-replica evaluates every "
+                          "iteration in YADE")
     rad.add_argument("--damping", type=local_damping,
                      help="YADE local damping of the grains during the run, in [0, 1) (default 0.7, PFC's; the "
                           "seed does not state it; the sample settles at 0.7 either way)")
@@ -213,6 +218,7 @@ COUPLING_FLAGS = (
     ("pv_max_columns", "pv_max_columns", int),
     ("skeleton_newton", "pv_skeleton_newton", bool),
     ("damping", "dem_damping", float),
+    ("replica", "dem_replica", bool),
 )
 
 

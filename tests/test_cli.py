@@ -249,14 +249,16 @@ def test_interrupted_radial_run_keeps_the_last_accepted_grains(tmp_path, monkeyp
 
 
 @pytest.mark.yade
-def test_pocket_newton_reuse_skeleton_and_damping_flags_reach_the_run(tmp_path):
+def test_pocket_newton_reuse_skeleton_damping_and_replica_flags_reach_the_run(tmp_path):
     out = tmp_path / "b3"
     assert main(["radial", "--case", "B3", "--max-steps", "2", "--pocket-newton", "--pv-reuse-steps", "0",
-                 "--no-skeleton-newton", "--damping", "0.25", "--out", str(out), "--quiet"]) == 0
+                 "--no-skeleton-newton", "--damping", "0.25", "--no-replica", "--out", str(out), "--quiet"]) == 0
     config = tomllib.loads((out / "config.toml").read_text())
     coupling = config["coupling"]
     assert coupling["pv_pocket_newton"] is True and coupling["pv_reuse_steps"] == 0
     assert coupling["pv_skeleton_newton"] is False
+    assert coupling["dem_replica"] is False  # every evaluation in YADE
+    assert json.loads((out / "summary.json").read_text())["replica_cycles"] == 0
     assert coupling["dem_damping"] == 0.25 and config["dem"]["damping"] == 0.25  # as YADE's integrator has it
 
 

@@ -17,6 +17,11 @@ predictor; decisions.md #18): that gives p_trial. Then, at that dt:
    A step that does not converge within the cap, or diverges, is retried from t^n at half the
    step (up to ``max_dt_halvings`` times); the cap grows back after easy steps.
 
+By default the evaluations of steps 1-3 run on a numba replica of the YADE disc scene
+(replica.py), loaded from YADE's state at t^n. Once the replica's evaluation passes, YADE runs
+the step from t^n at the same p_trial and its evaluation is tested in turn: it is the one kept,
+and if it misses the tolerance the iteration goes on in YADE (decisions #65).
+
 ``pv_rewind=False`` is the paper's likely practice (digest §6): the DEM continues through the
 iterations and p_trial <- p_calc. It lets loosely held grains near the front swing from one
 iteration to the next; A1 then runs into the iteration cap from step ~900 and diverges at step
@@ -47,6 +52,7 @@ from .apertures import ApertureLaw
 from .geometry import DomainGeometry, contact_gaps
 from .pockets import PocketNewton, trapped_pockets
 from .quasi_newton import InterfaceQuasiNewton
+from .replica import DiscReplica
 from .skeleton import SkeletonNewton, skeleton_stiffness
 
 
@@ -67,7 +73,10 @@ class GrainModel(Protocol):
     k_s: float  # contact shear stiffness [N/m per m of depth]
     fixed: np.ndarray  # grains the DEM holds in place
     friction: float  # Coulomb coefficient of the contacts
+    damping: float  # local damping of the grains' accelerations
 
+    # optional: ``carried_state()`` after ``save_state()`` hands the state to the numba replica
+    # (replica.CarriedState); a model without it iterates in the DEM itself
     def positions(self) -> np.ndarray: ...
     def save_state(self) -> None: ...
     def restore_state(self) -> None: ...
@@ -124,6 +133,9 @@ class CouplingSetup:
     # (skeleton.py): IQN then works on p -> p + (I - J)^-1 (H(p) - p) (decisions #55)
     pv_skeleton_newton: bool = True
     skeleton_inertia_factor: float = 0.5  # c in the grains' m / (c dt^2) (skeleton.py)
+    # iterate on the numba replica of the disc scene (replica.py) and run YADE once per attempt,
+    # at the pressures the replica converged to; that run is tested and kept (decisions #65)
+    dem_replica: bool = True
 
 
 @dataclass(frozen=True)
@@ -138,6 +150,8 @@ class PVEvaluation:
     mismatch_over_tolerance: float
     worst_domain: int
     reused_pairs: bool
+    on_replica: bool = False  # evaluated on the numba replica rather than YADE
+    confirmation: bool = False  # YADE's run at the pressures the replica converged to
 
 
 @dataclass
@@ -149,6 +163,15 @@ class CouplingRecord:
     dem_seconds: float = 0.0  # wall time in DEM cycles
     rewind_seconds: float = 0.0  # wall time saving and restoring the DEM state
     pocket_attempts: int = 0  # P-V attempts with trapped pockets (pockets.py)
+    replica_cycles: int = 0  # DEM cycles run on the numba replica (replica.py)
+    replica_seconds: float = 0.0
+    confirmations: int = 0  # YADE runs at pressures the replica converged to
+    confirmations_failed: int = 0  # ... whose own evaluation missed the tolerance
+
+    @property
+    def all_dem_cycles(self) -> int:
+        """DEM cycles on either engine (YADE and the replica): the P-V iteration's work."""
+        return self.dem_cycles + self.replica_cycles
 
 
 class CoupledFlowModel(FlowModel):
@@ -165,6 +188,10 @@ class CoupledFlowModel(FlowModel):
         self._easy_steps = 0  # consecutive easy steps since the cap was last changed
         self._tried_dt = setup.dt  # the last step the P-V iteration was tried at
         self.contact_pairs = net.pipe_grains
+        # the numba replica the P-V iteration runs on, where the DEM can hand over its state
+        use_replica = coupling.dem_replica and coupling.pv_rewind and not coupling.one_way
+        self.replica = DiscReplica.of(grains) if use_replica and hasattr(grains, "carried_state") else None
+        self._grains_moved = False  # YADE has run since the step's snapshot (a rewind must restore it)
         self.positions = grains.positions()  # grain centres now (read from the DEM after each run)
         initial_volume = self.geometry.volumes(self.positions)
         self.volume_floor = VOLUME_FLOOR * initial_volume
@@ -197,16 +224,23 @@ class CoupledFlowModel(FlowModel):
         needed = math.ceil(dt / stable) if stable > 0 else 1
         return max(fixed or 0, needed, 1)
 
-    def move_grains(self, pressure: np.ndarray, dt: float) -> np.ndarray:
-        """Apply the Eq. 8 forces of ``pressure`` and advance the DEM by dt; new positions."""
-        grains = self.grains
+    def move_grains(self, pressure: np.ndarray, dt: float, on_replica: bool = False) -> np.ndarray:
+        """Apply the Eq. 8 forces of ``pressure`` and advance the DEM (YADE, or its numba replica)
+        by dt; new positions."""
+        grains = self.replica if on_replica else self.grains
         grains.set_external_forces((self._force_matrix(self.positions) @ pressure).reshape(-1, 2))
         cycles = self.dem_cycles(dt)
         grains.timestep = dt / cycles
         start = time.perf_counter()
         grains.run(cycles)
-        self.coupling_record.dem_seconds += time.perf_counter() - start
-        self.coupling_record.dem_cycles += cycles
+        rec = self.coupling_record
+        if on_replica:
+            rec.replica_seconds += time.perf_counter() - start
+            rec.replica_cycles += cycles
+        else:
+            rec.dem_seconds += time.perf_counter() - start
+            rec.dem_cycles += cycles
+            self._grains_moved = True
         self.positions = grains.positions()
         return self.positions
 
@@ -224,9 +258,16 @@ class CoupledFlowModel(FlowModel):
         if save:
             self.grains.save_state()
             self._saved_positions = self.positions
+            if self.replica is not None:
+                self.replica.damping = self.grains.damping  # it may have been changed since
+                self.replica.load(self.grains.carried_state())
         else:
-            self.grains.restore_state()
+            if self._grains_moved:
+                self.grains.restore_state()
+            if self.replica is not None:
+                self.replica.restore_state()
             self.positions = self._saved_positions
+        self._grains_moved = False
         self.coupling_record.rewind_seconds += time.perf_counter() - start
 
     def domain_volumes(self, positions: np.ndarray) -> np.ndarray:
@@ -339,14 +380,18 @@ class CoupledFlowModel(FlowModel):
             pockets = np.setdiff1d(pockets, np.r_[self.outlet, self.inlet])
             self.pocket_newton.new_step(pockets, dt)
             self.coupling_record.pocket_attempts += len(pockets) > 0
-        positions = self.move_grains(sol.pressure, dt)
+        on_replica = self.replica is not None
+        positions = self.move_grains(sol.pressure, dt, on_replica)
         if c.one_way:
             return sol, fill, dt, limiter, 0, True
         g, orient, pc = self.pipe_properties(state)
         p_trial = sol.pressure
         self.quasi_newton.new_step(dt)
         newton = None  # the linearised skeleton's Newton step, built at the first unconverged evaluation
-        for iteration in range(1, c.pv_max_iter + 1):
+        iteration = 0
+        confirming = False  # this evaluation is YADE's run at the pressures the replica converged to
+        while True:
+            iteration += not confirming
             calc, fill = self._pv_evaluation(state, dt, positions, g, orient, pc, sol.blocked)
             mismatch = np.abs(calc.pressure - p_trial)
             scale = max(np.abs(state.pressure).max(), np.abs(p_trial).max(), c.pv_atol)
@@ -359,16 +404,28 @@ class CoupledFlowModel(FlowModel):
             if self.pv_log is not None:
                 worst = int(np.argmax(mismatch))
                 self.pv_log.append(PVEvaluation(state.t, dt, iteration, float(mismatch[worst] / tolerance), worst,
-                                             self.quasi_newton.reused))
+                                                self.quasi_newton.reused, on_replica, confirming))
             tested = mismatch[self.inlet] if c.pv_test == "inflow" else mismatch
-            if np.all(tested <= tolerance):
+            passed = bool(np.all(tested <= tolerance))
+            if confirming:
+                self.coupling_record.confirmations += 1
+                self.coupling_record.confirmations_failed += not passed
+                confirming = False
+            if passed and not on_replica:
                 return sol, fill, dt, limiter, iteration, True
+            if passed:
+                # YADE runs the step from t^n at the pressures the replica converged to; that run
+                # is tested as any evaluation, kept if it passes, iterated on (in YADE) if not
+                on_replica, confirming = False, True
+                self._rewind()
+                positions = self.move_grains(p_trial, dt)
+                continue
             if iteration == c.pv_max_iter:
                 break
             if c.pv_rewind:
                 correction = calc.pressure - p_trial
                 if c.pv_skeleton_newton:
-                    newton = newton or self._skeleton_newton(state, dt, g, calc.blocked)
+                    newton = newton or self._skeleton_newton(state, dt, g, calc.blocked, on_replica)
                     correction = newton.step(correction)
                 p_next = self.quasi_newton.update(p_trial, p_trial + correction)
                 if len(pockets):
@@ -378,13 +435,15 @@ class CoupledFlowModel(FlowModel):
                 self._rewind()
             else:
                 p_trial = calc.pressure
-            positions = self.move_grains(p_trial, dt)
+            positions = self.move_grains(p_trial, dt, on_replica)
         return sol, fill, dt, limiter, c.pv_max_iter, False
 
-    def _skeleton_newton(self, state, dt: float, g: np.ndarray, blocked: np.ndarray) -> SkeletonNewton:
+    def _skeleton_newton(self, state, dt: float, g: np.ndarray, blocked: np.ndarray,
+                         on_replica: bool = False) -> SkeletonNewton:
         """The Newton step of the linearised P-V map at the grains of t^n (skeleton.py), with the
-        contacts the DEM has now and this step's implicit pressure matrix."""
-        grains, system, positions = self.grains, self.system, self._saved_positions
+        contacts the DEM (YADE or its replica) has now and this step's implicit pressure matrix."""
+        grains = self.replica if on_replica else self.grains
+        system, positions = self.system, self._saved_positions
         pairs, normal, shear = grains.contacts()
         # a contact sliding at the Coulomb limit carries no more shear as it is pushed on
         sliding = shear >= SLIDING * grains.friction * normal

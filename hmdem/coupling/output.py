@@ -62,6 +62,12 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
         "rewind_wall_fraction": cr.rewind_seconds / rec.wall_time if rec.wall_time else float("nan"),
         "dem_cycles": cr.dem_cycles,
         "dem_cycles_per_step": cr.dem_cycles / max(rec.steps, 1),
+        # the P-V iteration on the numba replica, YADE confirming its pressures (decisions #65)
+        "replica_wall_fraction": cr.replica_seconds / rec.wall_time if rec.wall_time else float("nan"),
+        "replica_cycles": cr.replica_cycles,
+        "replica_cycles_per_step": cr.replica_cycles / max(rec.steps, 1),
+        "replica_confirmations": cr.confirmations,
+        "replica_confirmations_failed": cr.confirmations_failed,
         "one_way": sc.coupling.one_way,
         "sigma_m": sc.sigma,
         "inlet_domain_perimeter_m": domain_perimeter(net, int(net.inlet_domains[0])),

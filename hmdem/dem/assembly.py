@@ -28,6 +28,7 @@ class DiscAssembly:
     """Discs (centres (n, 2), radii (n,)) in a fresh YADE scene, ready to cycle."""
 
     _saved = None  # what save_state kept, if anything
+    _contact_read = None  # (O.iter, the last _read_contacts)
     _time_offset = 0.0  # O.time runs on through rewinds
     restores = 0  # rewinds by restore_state
 
@@ -117,22 +118,62 @@ class DiscAssembly:
 
     def save_state(self) -> None:
         """Keep what the DEM carries from one cycle to the next (:meth:`restore_state` returns to
-        it): each disc's position, orientation, velocity and angular velocity, and each real
-        contact's normal (the shear force is rotated from it, ``ScGeom::precompute``) and shear
-        force (Law2, Eq. 10). The normal force, penetration, contact point and shear increment
-        are recomputed each cycle from these. Read into Python in ~15 ms with ~2,600 contacts;
+        it): each disc's position, velocity and spin, and each real contact's normal (the shear
+        force is rotated from it, ``ScGeom::precompute``) and shear force (Law2, Eq. 10). The
+        normal force, penetration, contact point and shear increment are recomputed each cycle
+        from these. A sphere's orientation enters no force here and is not kept. Velocities are
+        kept in the plane (x, y and the spin about z: the blocked components stay zero). ~10 ms
+        for the discs and ~20 ms for ~2,600 contacts, most of it boost.python's attribute access;
         YADE's ``saveTmp`` of the whole scene took ~26 ms and its ``loadTmp`` ~20 ms (decisions
         #54)."""
-        from yade.minieigenHP import Quaternion, Vector3
+        from yade import _utils
 
         self._saved = None  # a save interrupted half-way leaves nothing to return to
-        # copies: YADE hands out velocities, normals and shear forces as views of the live values
         bodies = self._O.bodies
-        discs = [(Vector3(s.pos), Quaternion(s.ori), Vector3(s.vel), Vector3(s.angVel))
-                 for s in (bodies[i].state for i in self.ids)]
-        contacts = {(c.id1, c.id2): (Vector3(c.geom.normal), Vector3(c.phys.shearForce))
-                    for c in self._O.interactions if c.isReal}
-        self._saved = discs, contacts, self.time
+        positions = np.column_stack([_utils.coordsAndDisplacements(axis)[0] for axis in range(3)])[self.ids]
+        motion = np.array([(s.vel[0], s.vel[1], s.angVel[2]) for s in (bodies[i].state for i in self.ids)])
+        self._saved = positions, motion.reshape(-1, 3), self._read_contacts(), self.time
+
+    def _read_contacts(self):
+        """One pass over YADE's real interactions: body id pairs, copies of their normals and
+        shear forces (YADE hands out views of the live values), and the sizes of their normal and
+        shear forces (k, 2). Kept until the scene moves or is rewound: the read after a step is
+        accepted (apertures) and the snapshot of the next step's start see the same scene."""
+        from yade.minieigenHP import Vector3
+
+        now = self._O.iter
+        if self._contact_read is not None and self._contact_read[0] == now:
+            return self._contact_read[1]
+        pairs, normals, shears, sizes = [], [], [], []
+        for c in self._O.interactions:
+            if c.isReal:
+                phys = c.phys
+                shear = Vector3(phys.shearForce)
+                pairs.append((c.id1, c.id2))
+                normals.append(Vector3(c.geom.normal))
+                shears.append(shear)
+                sizes.append((phys.normalForce.norm(), shear.norm()))
+        read = pairs, normals, shears, np.array(sizes, float).reshape(-1, 2)
+        self._contact_read = now, read
+        return read
+
+    def carried_state(self):
+        """What :meth:`save_state` kept, as numpy arrays in the plane (``CarriedState``: positions,
+        velocities, spins about z, contact pairs as grain indices i < j with their normals from i
+        to j and shear forces), for the numba replica (``hmdem.coupling.replica``)."""
+        from ..coupling.replica import CarriedState
+
+        if self._saved is None:
+            raise RuntimeError("no saved DEM state to read (save_state was not called or was interrupted)")
+        positions, motion, (ids, normals, shears, _), _ = self._saved
+        index = self._index
+        pairs = np.array([(index[a], index[b]) for a, b in ids], int).reshape(-1, 2)
+        vectors = np.array([(n[0], n[1], f[0], f[1]) for n, f in zip(normals, shears)], float).reshape(-1, 4)
+        flip = pairs[:, 0] > pairs[:, 1]  # YADE keeps id1 < id2; grain indices follow body ids, but make sure
+        vectors[flip] *= -1.0  # normal and shear force are both seen from the first grain
+        pairs[flip] = pairs[flip, ::-1]
+        return CarriedState(positions[:, :2].copy(), motion[:, :2].copy(), motion[:, 2].copy(), pairs,
+                            vectors[:, :2].copy(), vectors[:, 2:].copy())
 
     def restore_state(self) -> None:
         """Return to the state kept by :meth:`save_state`: contacts made since are unmade (left to
@@ -143,21 +184,24 @@ class DiscAssembly:
         the saved ones to round-off: contacts made again are summed in another order
         (tests/test_coupled_run.py). A rewind interrupted half-way is completed by the next one."""
         from yade import utils
+        from yade.minieigenHP import Vector3
 
         if self._saved is None:
             raise RuntimeError("no saved DEM state to return to (save_state was not called or was interrupted)")
-        discs, contacts, time = self._saved
+        positions, motion, (ids, normals, shears, _), time = self._saved
+        self._contact_read = None
         interactions = self._O.interactions
+        saved = dict(zip(ids, zip(normals, shears)))
         real = {(c.id1, c.id2) for c in interactions if c.isReal}
-        for pair in real.difference(contacts):
+        for pair in real.difference(saved):
             interactions.erase(*pair)
         bodies = self._O.bodies
-        for i, (pos, ori, vel, ang_vel) in zip(self.ids, discs):
+        for i, (x, y, z), (vx, vy, spin) in zip(self.ids, positions.tolist(), motion.tolist()):
             state = bodies[i].state
-            state.pos, state.ori, state.vel, state.angVel = pos, ori, vel, ang_vel
-        for pair in set(contacts).difference(real):
+            state.pos, state.vel, state.angVel = Vector3(x, y, z), Vector3(vx, vy, 0.0), Vector3(0.0, 0.0, spin)
+        for pair in set(saved).difference(real):
             utils.createInteraction(*pair)
-        for pair, (normal, shear) in contacts.items():
+        for pair, (normal, shear) in saved.items():
             contact = interactions[pair]
             contact.geom.normal = normal
             contact.phys.shearForce = shear
@@ -172,14 +216,11 @@ class DiscAssembly:
     def contacts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """All real disc-disc contacts: grain index pairs (k, 2), i < j, and the sizes of their
         normal and shear forces (k,) [N per m]."""
-        pairs, forces = [], []
+        ids, _, _, sizes = self._read_contacts()
         index = self._index
-        for inter in self._O.interactions:
-            if inter.isReal and inter.id1 in index and inter.id2 in index:
-                pairs.append((index[inter.id1], index[inter.id2]))
-                forces.append((inter.phys.normalForce.norm(), inter.phys.shearForce.norm()))
-        forces = np.array(forces, float).reshape(-1, 2)
-        return np.sort(np.array(pairs, int).reshape(-1, 2), axis=1), forces[:, 0], forces[:, 1]
+        disc = np.array([a in index and b in index for a, b in ids], bool)
+        pairs = np.array([(index[a], index[b]) for (a, b), keep in zip(ids, disc) if keep], int).reshape(-1, 2)
+        return np.sort(pairs, axis=1), sizes[disc, 0], sizes[disc, 1]
 
     def contact_forces(self) -> tuple[np.ndarray, np.ndarray]:
         """All real disc-disc contacts: grain index pairs (k, 2), i < j, and normal forces (k,)."""
