@@ -74,6 +74,13 @@ class SpdSolver:
     def __init__(self, ordering: np.ndarray | None = None):
         self._fill_reducing = ordering  # new position -> unknown; None: COLAMD on the first matrix
         self._order = None  # (permutation q, permuted CSC indices, indptr, data map)
+        self._last_factor = None  # (scaled CSR values, their LU)
+
+    def __getstate__(self):  # SuperLU objects do not pickle (checkpoints); the next solve refactors
+        return {**self.__dict__, "_last_factor": None}
+
+    def __setstate__(self, state):
+        self.__dict__.update({"_last_factor": None, **state})
 
     def _ordering(self, A: sp.csr_matrix):
         if self._order is None:
@@ -153,10 +160,17 @@ class SpdSolver:
         return lu.solve
 
     def _direct(self, As: sp.csr_matrix):
-        """Solve function of an LU factorisation in the stored fill-reducing ordering."""
+        """Solve function of an LU factorisation in the stored fill-reducing ordering. The last
+        factorisation is kept and reused while the matrix is the same to the bit: the P-V
+        evaluations of a coupled step change only the right side (decisions #65)."""
         q, indices, indptr, data_map = self._ordering(As)
-        permuted = sp.csc_matrix((As.data[data_map], indices, indptr), shape=As.shape)
-        lu = spla.splu(permuted, permc_spec="NATURAL", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+        last = self._last_factor
+        if last is not None and np.array_equal(last[0], As.data):
+            lu = last[1]
+        else:
+            permuted = sp.csc_matrix((As.data[data_map], indices, indptr), shape=As.shape)
+            lu = spla.splu(permuted, permc_spec="NATURAL", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+            self._last_factor = As.data.copy(), lu
 
         def solve(r):
             y = np.empty(len(r))
