@@ -2,10 +2,10 @@
 
 Each case runs once per session, through the same command a user types
 (``python -m hmdem.hele_shaw radial --case X``), to breakthrough; the assertions read the run
-directory. Wall times on 2-core machines are in BENCHMARKS.md: B3 7-33 min (7 with the
-skeleton's Newton step, decisions #55), B3 one-way under a minute, A3 5-22 min, A1 19-65 min,
-B1 about an hour (decisions #55, #56); A3 and B3 again at half the flow step, 13-15 min each
-(both were slowed by trapped air pockets until those got their own Newton step, decisions #45). Tolerances are the digest's
+directory. Wall times on 2-core machines are in BENCHMARKS.md; with the P-V iteration on the
+numba replica (decisions #65), two runs at a time: A1 17 min, A3 6, B3 3.4, B1 26; B3 one-way
+under a minute; A3 and B3 again at half the flow step. Iterating in YADE they took 19-65, 5-22,
+7-33 and 49-60 min (decisions #45, #55, #56). Tolerances are the digest's
 (§13.3); where the model misses a claim the test is a strict expected failure that names the
 measured figure, so that a fix shows up.
 """
@@ -110,7 +110,8 @@ def test_b1_infiltration_dominated_with_fractures_inside_the_infiltrated_zone(hu
     # H3: B1 is "infiltration-dominated", its fractures stay inside the infiltrated zone and the
     # front stays circular (qualitative in the digest). Read as for A1 and A3: the regime, a
     # mass-radius D_f >= 1.90 (H1's bound for a circular front) and most opened contacts with
-    # both pores filled at breakthrough (measured 2026-11-25: 399 of 454, D_f 1.998, in 49 min)
+    # both pores filled at breakthrough (measured 2026-11-25: 399 of 454, D_f 1.998, in 49 min;
+    # 2026-11-27 on the replica: 409 of 464, D_f 1.998, in 26 min)
     s = huang("B1")[0]
     assert s["status"] == "breakthrough"
     assert s["regime"] == "infiltration-dominated with fracturing"

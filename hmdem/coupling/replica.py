@@ -4,11 +4,12 @@ Every P-V evaluation of a rewound step runs the DEM over the whole flow step fro
 (model.py); on B1 that is ~5 evaluations per accepted step, and YADE's cycles cost ~0.45 ms
 each on 1,395 discs (BENCHMARKS.md), so four fifths of B1's wall went on trajectories that were
 thrown away. This module integrates the same discs with the same laws, written out for the
-plane, at a few per cent of YADE's cost per cycle. The iteration converges on it; YADE then
+plane, at about a sixth of YADE's cost per cycle. The iteration converges on it; YADE then
 runs the step once at the converged pressures and that run is tested and kept (model.py,
 decisions #65), so every accepted trajectory is still YADE's.
 
-What is replicated, from YADE 2023.02's sources (the engines of ``hmdem.dem.discs.disc_engines``):
+What is replicated, from YADE's sources (read in a 2019 trunk fork; the installed 2023.02a
+agrees to round-off, tests/test_replica.py), the engines of ``hmdem.dem.discs.disc_engines``:
 
 - ``Ig2_Sphere_Sphere_ScGeom`` (avoidGranularRatcheting): normal n from disc 1 to disc 2,
   penetration r1 + r2 - d, shear increment dt x the tangential part of
@@ -259,7 +260,8 @@ class DiscReplica:
         return self.masses_
 
     def contacts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Touching pairs (k, 2), their normal and shear force sizes (k,), as of the last cycle."""
+        """Touching pairs (k, 2) as of the last cycle, the sizes of their normal forces from the
+        overlaps now (YADE's are one cycle older) and of their shear forces (k,)."""
         a = self.active
         pairs = np.column_stack((self.ci[a], self.cj[a]))
         d = np.linalg.norm(self.pos[pairs[:, 1]] - self.pos[pairs[:, 0]], axis=1)
