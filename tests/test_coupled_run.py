@@ -393,6 +393,29 @@ def test_replica_iteration_keeps_the_outcome_and_every_step_is_yades(reduced_run
     assert cr.dem_cycles < 0.5 * off_model.coupling_record.dem_cycles
 
 
+def test_interrupt_inside_yades_cycles_rewinds_yade_itself(small_sample, monkeypatch):
+    # Ctrl-C or SIGTERM landing half-way through a YADE run (here the third step's run at the
+    # replica's pressures): the run stops with YADE back at the last accepted step, not only the
+    # model's copy of the positions, so the contact forces written out belong to that step
+    from hmdem.dem.assembly import DiscAssembly
+
+    sc = build_radial_scenario(RADIAL_CASES["B3"], packing=small_sample)
+    model = CoupledFlowModel(sc.net, sc.setup, start_grains(sc), sc.coupling)
+    original, calls = DiscAssembly.run, []
+
+    def run_then_interrupt(self, cycles):
+        calls.append(cycles)
+        if len(calls) == 3:
+            original(self, cycles // 2)
+            raise KeyboardInterrupt
+        original(self, cycles)
+
+    monkeypatch.setattr(DiscAssembly, "run", run_then_interrupt)
+    state, rec = model.run()
+    assert rec.status == "interrupted" and rec.steps == 2
+    assert np.array_equal(model.grains.positions(), model.positions)
+
+
 def test_volume_rate_predictor_saves_iterations_without_changing_the_outcome(reduced_runs, small_sample):
     # decisions.md #18: solving the first p_trial of a step with dV = (dV/dt)^{n-1} dt instead of
     # dV = 0 lets the first P-V iteration converge where the grains move smoothly. Same physics:

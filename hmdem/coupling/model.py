@@ -231,6 +231,8 @@ class CoupledFlowModel(FlowModel):
         grains.set_external_forces((self._force_matrix(self.positions) @ pressure).reshape(-1, 2))
         cycles = self.dem_cycles(dt)
         grains.timestep = dt / cycles
+        # before the run: a Ctrl-C or SIGTERM inside YADE's cycles must still rewind it
+        self._grains_moved |= not on_replica
         start = time.perf_counter()
         grains.run(cycles)
         rec = self.coupling_record
@@ -240,7 +242,6 @@ class CoupledFlowModel(FlowModel):
         else:
             rec.dem_seconds += time.perf_counter() - start
             rec.dem_cycles += cycles
-            self._grains_moved = True
         self.positions = grains.positions()
         return self.positions
 
