@@ -100,10 +100,13 @@ class DiscAssembly:
         """Current centres (n, 2). YADE's ``coordsAndDisplacements`` reads one coordinate of every
         body in C++ (0.35 ms for x and y of 1,395 discs, against 3.8 ms body by body); the scene
         holds these discs only, so the body ids index its lists."""
+        return self._coordinates(2)
+
+    def _coordinates(self, axes: int) -> np.ndarray:
+        """The first ``axes`` coordinates of the discs' centres (n, axes), read in C++."""
         from yade import _utils
 
-        x, y = _utils.coordsAndDisplacements(0)[0], _utils.coordsAndDisplacements(1)[0]
-        return np.column_stack((x, y))[self.ids]
+        return np.column_stack([_utils.coordsAndDisplacements(axis)[0] for axis in range(axes)])[self.ids]
 
     def velocities(self) -> np.ndarray:
         bodies = self._O.bodies
@@ -126,11 +129,9 @@ class DiscAssembly:
         for the discs and ~20 ms for ~2,600 contacts, most of it boost.python's attribute access;
         YADE's ``saveTmp`` of the whole scene took ~26 ms and its ``loadTmp`` ~20 ms (decisions
         #54)."""
-        from yade import _utils
-
         self._saved = None  # a save interrupted half-way leaves nothing to return to
         bodies = self._O.bodies
-        positions = np.column_stack([_utils.coordsAndDisplacements(axis)[0] for axis in range(3)])[self.ids]
+        positions = self._coordinates(3)
         motion = np.array([(s.vel[0], s.vel[1], s.angVel[2]) for s in (bodies[i].state for i in self.ids)])
         self._saved = positions, motion.reshape(-1, 3), self._read_contacts(), self.time
 
@@ -166,9 +167,8 @@ class DiscAssembly:
         if self._saved is None:
             raise RuntimeError("no saved DEM state to read (save_state was not called or was interrupted)")
         positions, motion, (ids, normals, shears, _), _ = self._saved
-        index = self._index
-        pairs = np.array([(index[a], index[b]) for a, b in ids], int).reshape(-1, 2)
-        vectors = np.array([(n[0], n[1], f[0], f[1]) for n, f in zip(normals, shears)], float).reshape(-1, 4)
+        pairs, disc = self._grain_pairs(ids)
+        vectors = np.array([(n[0], n[1], f[0], f[1]) for n, f in zip(normals, shears)], float).reshape(-1, 4)[disc]
         flip = pairs[:, 0] > pairs[:, 1]  # YADE keeps id1 < id2; grain indices follow body ids, but make sure
         vectors[flip] *= -1.0  # normal and shear force are both seen from the first grain
         pairs[flip] = pairs[flip, ::-1]
@@ -217,10 +217,16 @@ class DiscAssembly:
         """All real disc-disc contacts: grain index pairs (k, 2), i < j, and the sizes of their
         normal and shear forces (k,) [N per m]."""
         ids, _, _, sizes = self._read_contacts()
+        pairs, disc = self._grain_pairs(ids)
+        return np.sort(pairs, axis=1), sizes[disc, 0], sizes[disc, 1]
+
+    def _grain_pairs(self, ids) -> tuple[np.ndarray, np.ndarray]:
+        """Grain index pairs (k, 2) of the disc-disc contacts among YADE body id pairs, in their
+        order, and which of the id pairs those are (a mask)."""
         index = self._index
         disc = np.array([a in index and b in index for a, b in ids], bool)
         pairs = np.array([(index[a], index[b]) for (a, b), keep in zip(ids, disc) if keep], int).reshape(-1, 2)
-        return np.sort(pairs, axis=1), sizes[disc, 0], sizes[disc, 1]
+        return pairs, disc
 
     def contact_forces(self) -> tuple[np.ndarray, np.ndarray]:
         """All real disc-disc contacts: grain index pairs (k, 2), i < j, and normal forces (k,)."""
