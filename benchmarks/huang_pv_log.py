@@ -27,12 +27,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from hmdem.coupling.model import CoupledFlowModel, PVEvaluation  # noqa: E402
+from hmdem.coupling.model import CoupledFlowModel, PVEvaluation, replica_for  # noqa: E402
 from hmdem.coupling.pockets import PocketNewton, trapped_pockets  # noqa: E402
 from hmdem.cli import local_damping, non_negative_int, positive_int  # noqa: E402
 from hmdem.coupling.quasi_newton import InterfaceQuasiNewton  # noqa: E402
 from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, start_grains  # noqa: E402
-from hmdem.coupling.replica import DiscReplica  # noqa: E402
 from hmdem.dem.assembly import DiscAssembly  # noqa: E402
 
 GRAIN_FIELDS = ("radii", "ids", "fixed", "k_n", "k_s", "friction", "_index")
@@ -79,10 +78,10 @@ def resume(checkpoint: Path):
     model.__dict__.setdefault("opened_time", np.where(model.opened, np.nan, np.inf))
     model.__dict__.setdefault("wetted_time", np.where(data["state"].saturation > 0.0, np.nan, np.inf))
     # a checkpoint saved before the replica (decisions #65): give it one, as a new run would have
-    c = model.coupling
     model.__dict__.setdefault("_grains_moved", False)
+    model.__dict__.setdefault("last_volume_change", np.zeros_like(model.volume))  # read by one-way "lagged" only
     if "replica" not in model.__dict__:
-        model.replica = DiscReplica.of(grains) if c.dem_replica and c.pv_rewind and not c.one_way else None
+        model.replica = replica_for(grains, model.coupling)
     return model, data["state"]
 
 

@@ -60,6 +60,9 @@ def build_parser() -> argparse.ArgumentParser:
                           "1.25 mm; the injection domain's own perimeter is in summary.json)")
     rad.add_argument("--one-way", action="store_true",
                      help="sequential coupling: grains move, dV is left out of the pressure equation")
+    rad.add_argument("--one-way-volume", choices=("ignored", "lagged"),
+                     help="with --one-way: the grains' volume change is left out (default) or enters the next "
+                          "step's pressure solve, one step late (decisions #66)")
     rad.add_argument("--dt", type=positive_number, help="nominal flow step [s] (default per case, Table 4)")
     rad.add_argument("--dem-cycles", type=positive_number,
                      help="DEM cycles per flow step (the paper: 2000); default: the stable DEM step")
@@ -219,6 +222,7 @@ COUPLING_FLAGS = (
     ("skeleton_newton", "pv_skeleton_newton", bool),
     ("damping", "dem_damping", float),
     ("replica", "dem_replica", bool),
+    ("one_way_volume", "one_way_volume", str),
 )
 
 
@@ -232,6 +236,8 @@ def run_radial(args) -> int:
 
     if args.packing is not None and not args.packing.is_file():
         raise InputError(f"--packing: no such file {str(args.packing)!r}")
+    if args.one_way_volume is not None and not args.one_way:
+        raise InputError("--one-way-volume: only with --one-way (the P-V iteration always puts dV in)")
     out = new_run_directory(args.out, args.case)
     case = RADIAL_CASES[args.case]
     if args.dt is not None:

@@ -248,6 +248,23 @@ def test_interrupted_radial_run_keeps_the_last_accepted_grains(tmp_path, monkeyp
     np.testing.assert_allclose(volumes, np.load(out / "network.npz")["domain_volume"], rtol=1e-12)
 
 
+def test_one_way_volume_needs_one_way(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["radial", "--case", "B3", "--one-way-volume", "lagged", "--out", str(out)]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "--one-way-volume" in lines[0]
+    assert not out.exists()
+
+
+@pytest.mark.yade
+def test_one_way_volume_reaches_the_run(tmp_path):
+    out = tmp_path / "b3"
+    assert main(["radial", "--case", "B3", "--one-way", "--one-way-volume", "lagged", "--max-steps", "2",
+                 "--out", str(out), "--quiet"]) == 0
+    coupling = tomllib.loads((out / "config.toml").read_text())["coupling"]
+    assert coupling["one_way"] is True and coupling["one_way_volume"] == "lagged"
+
+
 @pytest.mark.yade
 def test_pocket_newton_reuse_skeleton_damping_and_replica_flags_reach_the_run(tmp_path):
     out = tmp_path / "b3"

@@ -130,8 +130,9 @@ def test_rewind_interrupted_half_way_is_completed_by_the_next(small_sample, monk
     assert np.array_equal(grains.positions(), positions) and np.array_equal(grains.velocities(), velocities)
 
 
-def run_small(sample, one_way, steps=60):
+def run_small(sample, one_way, steps=60, one_way_volume="ignored"):
     sc = build_radial_scenario(RADIAL_CASES["A3"], packing=sample, one_way=one_way)
+    sc.coupling.one_way_volume = one_way_volume
     grains = start_grains(sc)
     sc.setup.max_steps = steps
     model = CoupledFlowModel(sc.net, sc.setup, grains, sc.coupling)
@@ -179,6 +180,32 @@ def test_one_way_model_ignores_the_volume_change(small_sample):
     assert set(model.coupling_record.pv_iterations) == {0}
     unbooked = np.abs(model.volume - v0).sum()
     assert unbooked > 1e-4 * sc.setup.rate * state.t
+
+
+def test_lagged_one_way_model_books_each_volume_change_one_step_late(small_sample, monkeypatch):
+    # decisions #66: the lagged sequential variant puts the domains' volume change of step k into
+    # the pressure solve of step k + 1, so over a run it books all but the last step's change
+    solved = []
+    original = CoupledFlowModel._trial
+
+    def record(self, *args, **kwargs):
+        solved.append((self.record.steps, self.volume_change.copy()))
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(CoupledFlowModel, "_trial", record)
+    sc, model, state, rec, v0, _ = run_small(small_sample, one_way=True, steps=30, one_way_volume="lagged")
+    assert rec.steps == 30
+    assert set(model.coupling_record.pv_iterations) == {0}
+    booked = {}
+    for step, change in solved:  # every solve of a step sees the same dV
+        assert step not in booked or np.array_equal(booked[step], change)
+        booked[step] = change
+    assert not booked[0].any()  # nothing has moved before the first step
+    last = model.last_volume_change
+    assert np.abs(last).max() > 0.0
+    np.testing.assert_allclose(sum(booked.values()), model.volume - v0 - last, rtol=0, atol=1e-12 * v0.max())
+    # and the step's mass balance holds with the lagged dV in it (U8, 1e-10)
+    assert rec.max_mass_balance_error < 1e-10
 
 
 def test_yade_batch_runs_the_radial_script(tmp_path):

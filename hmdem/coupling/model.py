@@ -30,7 +30,8 @@ iteration to the next; A1 then runs into the iteration cap from step ~900 and di
 On acceptance the domain volumes and the pipe apertures (Eqs. 13-14, from the contact forces
 and gaps) are updated for the next step; the network topology stays fixed and a contact that
 detaches becomes a fracture pipe. ``one_way=True`` is the sequential model the paper compares
-against (Zhang et al.): grains move under p, but dV never enters the pressure equation.
+against (Zhang et al.): grains move under p, but dV never enters the pressure equation, or with
+``one_way_volume="lagged"`` enters it one step late.
 
 The DEM is reached only through the small protocol :class:`GrainModel`; this module does not
 import YADE (``hmdem.dem.assembly.DiscAssembly`` implements the protocol).
@@ -107,6 +108,11 @@ class CouplingSetup:
     dem_cycles_per_step: int | None = None  # fixed count (the paper: 2000); None: stable DEM step
     stable_dem_step: float = 0.0  # DEM stability step [s], used when dem_cycles_per_step is None
     one_way: bool = False
+    # what the one-way variant does with the grains' volume change: "ignored", dV never enters
+    # the pressure equation (digest H10's no-dV variant); "lagged", the change of the last
+    # accepted step enters the next step's pressure solve (sequential coupling: mass is booked a
+    # step late; at the realistic K of water B3 collapses, decisions #66)
+    one_way_volume: str = "ignored"
     # rewind the DEM to t^n before every P-V iteration after the first and update p_trial by
     # interface quasi-Newton (IQN-ILS): each iteration is then a function evaluation of one
     # fixed point. False: the DEM continues and p_trial <- p_calc (the paper's likely practice)
@@ -136,6 +142,18 @@ class CouplingSetup:
     # iterate on the numba replica of the disc scene (replica.py) and run YADE once per attempt,
     # at the pressures the replica converged to; that run is tested and kept (decisions #65)
     dem_replica: bool = True
+
+    @property
+    def iterates_on_replica(self) -> bool:
+        """The P-V iteration runs on the replica: asked for, and rewound to the step's start each
+        evaluation (the replica is loaded from that snapshot); the one-way variant iterates not
+        at all."""
+        return self.dem_replica and self.pv_rewind and not self.one_way
+
+
+def replica_for(grains: GrainModel, coupling: CouplingSetup) -> DiscReplica | None:
+    """The numba replica the P-V iteration runs on, where the DEM can hand over its state."""
+    return DiscReplica.of(grains) if coupling.iterates_on_replica and hasattr(grains, "carried_state") else None
 
 
 @dataclass(frozen=True)
@@ -178,6 +196,8 @@ class CoupledFlowModel(FlowModel):
     """:class:`FlowModel` whose grains move (YADE through :class:`GrainModel`)."""
 
     def __init__(self, net: Network, setup: FlowSetup, grains: GrainModel, coupling: CouplingSetup):
+        if coupling.one_way_volume not in ("ignored", "lagged"):
+            raise ValueError(f"one_way_volume must be 'ignored' or 'lagged', not {coupling.one_way_volume!r}")
         super().__init__(net, setup)
         self.grains, self.coupling = grains, coupling
         self.geometry = DomainGeometry(net)
@@ -188,9 +208,7 @@ class CoupledFlowModel(FlowModel):
         self._easy_steps = 0  # consecutive easy steps since the cap was last changed
         self._tried_dt = setup.dt  # the last step the P-V iteration was tried at
         self.contact_pairs = net.pipe_grains
-        # the numba replica the P-V iteration runs on, where the DEM can hand over its state
-        use_replica = coupling.dem_replica and coupling.pv_rewind and not coupling.one_way
-        self.replica = DiscReplica.of(grains) if use_replica and hasattr(grains, "carried_state") else None
+        self.replica = replica_for(grains, coupling)
         self._grains_moved = False  # YADE has run since the step's snapshot (a rewind must restore it)
         self.positions = grains.positions()  # grain centres now (read from the DEM after each run)
         initial_volume = self.geometry.volumes(self.positions)
@@ -210,6 +228,7 @@ class CoupledFlowModel(FlowModel):
         self.opened_time = np.full(net.n_pipes, np.inf)  # when each contact first counted as opened
         self.wetted_time = np.full(net.n_domains, np.inf)  # when invading fluid first entered each domain
         self.volume_rate = np.zeros(net.n_domains)  # dV/dt of the last accepted step
+        self.last_volume_change = np.zeros(net.n_domains)  # dV of the last accepted step
         # a list to append a PVEvaluation to at every P-V evaluation (benchmarks/huang_pv_log.py); None: off
         self.pv_log: list | None = None
         self._predicting = False  # front-logic solves use dV = volume_rate x dt
@@ -367,7 +386,8 @@ class CoupledFlowModel(FlowModel):
         """One flow step at the front logic's dt with the P-V iteration; also returns the
         iteration count and whether it converged."""
         c = self.coupling
-        self.volume_change[:] = 0.0
+        lagged = c.one_way and c.one_way_volume == "lagged"
+        self.volume_change[:] = self.last_volume_change if lagged else 0.0
         self._predicting = c.pv_predictor and not c.one_way
         try:
             sol, fill, dt, limiter = super().implicit_step(state, blocked_guess)
@@ -465,7 +485,8 @@ class CoupledFlowModel(FlowModel):
         super()._accept(state, sol, fill, dt, limiter)
         volume = self.domain_volumes(self.positions)
         self.floored |= volume <= self.volume_floor
-        self.volume_rate = (volume - self.volume) / dt
+        self.last_volume_change = volume - self.volume
+        self.volume_rate = self.last_volume_change / dt
         # saturation is a volume fraction: the invading volume is kept as the domain deforms
         invading = state.saturation * self.volume
         state.saturation = np.where(state.invaded, 1.0, np.clip(invading / volume, 0.0, 1.0))
