@@ -18,6 +18,7 @@ from .cases import CASES
 from .cli import (InputError, OneLineParser, dispatch, local_damping, new_run_directory, non_negative_int, positive_int,
                   positive_number)
 from .flow.fluids import WEAK_COMPRESSION
+from .snapshots import SnapshotRecorder
 
 PROG = "python -m hmdem.hele_shaw"
 CASE_NAMES = tuple(CASES)
@@ -115,6 +116,10 @@ def add_run_options(sub: argparse.ArgumentParser, default_packing: str) -> None:
     sub.add_argument("--packing", type=Path, help=f"packing .npz (default: {default_packing})")
     sub.add_argument("--out", type=Path, help="run directory to create (default runs/<case>-<time>)")
     sub.add_argument("--quiet", action="store_true", help="no progress bar")
+    sub.add_argument("--snapshots", type=positive_int,
+                     help="keep N ParaView snapshots as the front advances (each 1/N of its way to the outflow; "
+                          "t_max for single-phase runs) and the final state: domains.pvd (and contacts.pvd with "
+                          "moving grains) over snapshots/*.vtu")
 
 
 def make_case(args):
@@ -187,14 +192,29 @@ def run_linear(args, argv: list[str] | None = None) -> int:
               file=sys.stderr)
     model = FlowModel(sc.net, sc.setup)
     bar = None if args.quiet else FrontProgress(case.name, sc.setup)
-    state, rec = model.run(progress=bar)
+    snapshots = None if args.snapshots is None else SnapshotRecorder(args.snapshots)
+    state, rec = model.run(progress=each_step(bar, snapshots))
     if bar is not None:
         bar.close(rec.status == "breakthrough")
-    summary = write_run(out, sc, model, state, rec, seed=args.seed, argv=sys.argv[1:] if argv is None else argv)
+    summary = write_run(out, sc, model, state, rec, seed=args.seed, argv=sys.argv[1:] if argv is None else argv,
+                        snapshots=None if snapshots is None else snapshots.taken)
     print(f"{case.name}: {rec.status} at t = {state.t:.4g} s after {rec.steps} steps; regime: {summary['regime']}, "
           f"D_f = {summary['fractal_dimension']:.3f}, peak injection pressure {summary['peak_injection_pressure_pa']:.4g} Pa")
     print(f"run directory: {out}")
     return finish(rec, summary)
+
+
+def each_step(*callbacks):
+    """One progress callback calling those given (None ones left out)."""
+    called = [c for c in callbacks if c is not None]
+    if not called:
+        return None
+
+    def progress(model, state):
+        for callback in called:
+            callback(model, state)
+
+    return progress
 
 
 def finish(rec, summary: dict) -> int:
@@ -256,10 +276,12 @@ def run_radial(args) -> int:
     grains = start_grains(sc, threads=args.threads)
     model = CoupledFlowModel(sc.net, sc.setup, grains, sc.coupling)
     bar = None if args.quiet else FrontProgress(case.name, sc.setup)
-    state, rec = model.run(progress=bar)
+    snapshots = None if args.snapshots is None else SnapshotRecorder(args.snapshots)
+    state, rec = model.run(progress=each_step(bar, snapshots))
     if bar is not None:
         bar.close(rec.status == "breakthrough")
-    summary = write_radial_run(out, sc, model, state, rec, argv=sys.argv[1:])
+    summary = write_radial_run(out, sc, model, state, rec, argv=sys.argv[1:],
+                               snapshots=None if snapshots is None else snapshots.taken)
     early = ""
     if summary["early_peak_fell"]:
         early = (f" (early peak {summary['early_peak_injection_pressure_pa']:.4g} Pa "

@@ -13,6 +13,7 @@ from .flow.diagnostics import classify_regime, early_peak, fractal_dimension, ma
 from .flow.fluids import WEAK_COMPRESSION
 from .plots import plot_pattern, plot_pressure
 from .rundir import atomic_run_directory, write_json, write_rows, write_toml
+from .snapshots import domain_mesh, take, write_series
 
 
 def grain_diameter(net) -> float:
@@ -92,12 +93,14 @@ def summarize(sc, model, state, rec, d_f: float | None = None) -> dict:
 
 
 def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: dict | None = None,
-              extra_files=None, overlay=None, config_extra: dict | None = None) -> dict:
+              extra_files=None, overlay=None, config_extra: dict | None = None, snapshots=None) -> dict:
     """Write every file of the run directory into a temporary folder, then rename it to ``out``.
 
     Couplings add to the contract: ``summary_extra`` (keys added to or replacing the summary's),
     ``extra_files(tmp)`` writes further files, ``overlay`` (k, 2, 2) segments drawn in red on
     the pattern (e.g. opened contacts), ``config_extra`` more config.toml tables.
+    ``snapshots`` (a list of :class:`~hmdem.snapshots.Snapshot`, or None): the ParaView time
+    series, closed by the final state (hmdem/snapshots.py).
     """
     extra = summary_extra or {}
     summary = summarize(sc, model, state, rec, extra.get("fractal_dimension"))
@@ -130,6 +133,9 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
         plot_pressure(tmp / "pressure.png", net, state.pressure, [r[0] for r in rec.rows], [r[2] for r in rec.rows],
                       f"{sc.case.name}: mean injection pressure", marked if summary["early_peak_fell"] else None)
         write_vtu(tmp / "domains.vtu", net, state)
+        if snapshots is not None:
+            final = [] if snapshots and snapshots[-1].t == state.t else [take(model, state)]
+            write_series(tmp, net, [*snapshots, *final])
         if extra_files is not None:
             extra_files(tmp)
     return summary
@@ -137,15 +143,4 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
 
 def write_vtu(path: Path, net, state) -> None:
     """Domain polygons (as their triangles) with pressure, saturation and invasion time for ParaView."""
-    import meshio
-
-    from .network.network import OUTSIDE
-
-    inside = net.triangle_domain != OUTSIDE
-    dom = net.triangle_domain[inside]
-    points = np.c_[net.points, np.zeros(len(net.points))]
-    t_inv = np.where(np.isfinite(state.invasion_time), state.invasion_time, -1.0)
-    mesh = meshio.Mesh(points, [("triangle", net.triangles[inside])],
-                       cell_data={"pressure": [state.pressure[dom]], "saturation": [state.saturation[dom]],
-                                  "invasion_time": [t_inv[dom]], "domain": [dom]})
-    mesh.write(path)
+    domain_mesh(net, net.points, state.pressure, state.saturation, state.invasion_time).write(path)

@@ -44,3 +44,23 @@ def cf1_run():
 @pytest.fixture(scope="session")
 def rng():
     return np.random.default_rng(12345)
+
+
+@pytest.fixture
+def interrupt_after(monkeypatch):
+    """``interrupt_after(n)``: a Ctrl-C (KeyboardInterrupt) right after the n-th accepted flow step."""
+    from hmdem.flow import simulation
+
+    def install(steps: int) -> None:
+        calls = {"n": 0}
+        original = simulation.FlowModel._accept
+
+        def accept_then_interrupt(self, *a, **k):
+            original(self, *a, **k)
+            calls["n"] += 1
+            if calls["n"] == steps:
+                raise KeyboardInterrupt
+
+        monkeypatch.setattr(simulation.FlowModel, "_accept", accept_then_interrupt)
+
+    return install

@@ -111,20 +111,9 @@ def test_an_out_taken_during_the_run_keeps_the_results_beside_it(tmp_path, capsy
     assert len(lines) == 1 and lines[0].startswith("prog: --out:") and "second.unsaved-" in lines[0]
 
 
-def test_interrupted_run_leaves_valid_directory(tmp_path, monkeypatch):
+def test_interrupted_run_leaves_valid_directory(tmp_path, interrupt_after):
     # Ctrl-C mid-run: the run directory is still complete, with status "interrupted"
-    from hmdem.flow import simulation
-
-    calls = {"n": 0}
-    original = simulation.FlowModel._accept
-
-    def accept_then_interrupt(self, *a, **k):
-        original(self, *a, **k)
-        calls["n"] += 1
-        if calls["n"] == 20:
-            raise KeyboardInterrupt
-
-    monkeypatch.setattr(simulation.FlowModel, "_accept", accept_then_interrupt)
+    interrupt_after(20)
     out = tmp_path / "cut"
     assert main(["linear", "--case", "vf", "--out", str(out), "--quiet"]) == 130
     summary = json.loads((out / "summary.json").read_text())

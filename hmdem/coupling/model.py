@@ -319,6 +319,12 @@ class CoupledFlowModel(FlowModel):
         those that have closed again)."""
         return self.opened & (self.detached_gap > self.opening_gap)
 
+    def grain_snapshot(self) -> dict:
+        """What a ParaView snapshot keeps of the grains (hmdem/snapshots.py): their centres, the
+        pipes' apertures and which contacts have opened."""
+        return {"points": self.positions.copy(), "pipe_aperture": self.net.pipe_aperture.copy(),
+                "pipe_opened": self.opened.copy()}
+
     def run(self, state=None, progress=None):
         """:meth:`FlowModel.run`; a run stopped inside a step (Ctrl-C, SIGTERM, divergence) is
         rewound to the last accepted step when the rewound P-V iteration kept it, so that the

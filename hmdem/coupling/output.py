@@ -16,7 +16,7 @@ from .radial import classify_radial_regime, domain_perimeter
 GPA = 1e9
 
 
-def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
+def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None) -> dict:
     grains, net = model.grains, sc.net
     positions = model.positions
     initial_positions = sc.packing.centres.copy()
@@ -100,4 +100,4 @@ def write_radial_run(out: Path, sc, model, state, rec, argv) -> dict:
                       "damping": grains.damping}}
     overlay = positions[g[opened]]
     return write_run(out, sc, model, state, rec, seed=0, argv=argv, summary_extra=extra, extra_files=files,
-                     overlay=overlay, config_extra=config)
+                     overlay=overlay, config_extra=config, snapshots=snapshots)
