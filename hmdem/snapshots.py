@@ -11,6 +11,7 @@ opened (the fractures, seed 004 Eq. 14). The run directory gets ``domains.pvd`` 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
@@ -110,3 +111,26 @@ def write_series(directory: Path, net, snapshots: list[Snapshot]) -> None:
     write_collection(directory / "domains.pvd", domains)
     if contacts:
         write_collection(directory / "contacts.pvd", contacts)
+
+
+def read_collection(path: Path) -> list[tuple[float, Path]]:
+    """(time, data file) of each entry of a .pvd collection written by :func:`write_collection`."""
+    entries = re.findall(r'timestep="([^"]+)" part="0" file="([^"]+)"', path.read_text())
+    return [(float(t), path.parent / name) for t, name in entries]
+
+
+def read_series(run: Path, n_domains: int):
+    """The snapshots of a run directory, oldest first: (t, saturation per domain, and with moving
+    grains the pipes' apertures and opened contacts, else None and None)."""
+    import meshio
+
+    contacts = dict(read_collection(run / "contacts.pvd")) if (run / "contacts.pvd").is_file() else {}
+    for t, name in read_collection(run / "domains.pvd"):
+        cells = meshio.read(name).cell_data
+        saturation = np.zeros(n_domains)
+        saturation[cells["domain"][0]] = cells["saturation"][0]
+        aperture = opened = None
+        if t in contacts:
+            pipes = meshio.read(contacts[t]).cell_data
+            aperture, opened = pipes["aperture"][0], pipes["opened"][0].astype(bool)
+        yield t, saturation, aperture, opened

@@ -107,6 +107,37 @@ def test_pipe_resistance_and_lowest_path_sum():
     assert total == pytest.approx(r[0] + r[1], rel=1e-12)
 
 
+def test_fracture_and_side_resistance_sets():
+    # decisions #67: fractures are opened contacts the fluid has reached, away from the port;
+    # their sides are contacts of the same domains that stayed closed and are wetted
+    from hmdem.coupling.micromechanics import fracture_and_side_resistance
+    from hmdem.network.network import OUTSIDE
+
+    # domain 0 is the port; 1 and 2 wetted, 3 dry
+    pipe_domains = np.array([[0, 1],  # opened, at the port: left out
+                             [1, 2],  # opened, wetted: a fracture
+                             [2, 3],  # opened, reached (2 is wetted): a fracture
+                             [1, 3],  # closed contact of a fracture's domain: a side
+                             [2, 0],  # closed contact at the port and of a fracture's domain: a side
+                             [3, 3],  # closed, dry: left out
+                             [2, OUTSIDE]])  # outer face: left out
+    aperture = np.array([1e-4, 3e-5, 2e-5, 5e-6, 6e-6, 7e-6, 1e-6])
+    length = np.full(7, 3e-5)
+    opened = np.array([True, True, True, False, False, False, True])
+    closed_at_start = np.array([True, True, True, True, True, True, True])
+    saturation = np.array([1.0, 1.0, 0.3, 0.0])
+    count, fracture, side = fracture_and_side_resistance(pipe_domains, length, aperture, opened, closed_at_start,
+                                                         saturation, np.array([0]), 0.176)
+    resistance = 12 * 0.176 * 3e-5 / aperture**3
+    assert count == 2
+    assert fracture == pytest.approx(resistance[1], rel=1e-12)
+    assert side == pytest.approx(resistance[4], rel=1e-12)
+    # a pipe that was not a contact at the start is no side, however narrow
+    closed_at_start[4] = False
+    assert fracture_and_side_resistance(pipe_domains, length, aperture, opened, closed_at_start, saturation,
+                                        np.array([0]), 0.176)[2] == pytest.approx(resistance[3], rel=1e-12)
+
+
 def test_fracture_chronology_against_the_fluid_arrival():
     # decisions #48. Fluid enters domains 0, 1 and 3 at 2, 3 and 5 us and fills them at 3, 4 and
     # 6 us; it enters domain 2 at 6 us but never fills it.

@@ -10,10 +10,28 @@ import numpy as np
 from ..plots import plot_force_chains, plot_fracture_chronology
 from ..report import pattern_fractal_dimension, radial_pattern_dimension, write_run
 from .geometry import contact_gaps
-from .micromechanics import chronology_counts, fracture_timing, lowest_path_resistance, pipe_resistance
+from ..flow.fluids import FluidPair
+from ..snapshots import read_series
+from .micromechanics import (chronology_counts, fracture_and_side_resistance, fracture_timing, lowest_path_resistance,
+                             pipe_resistance)
 from .radial import classify_radial_regime, domain_perimeter
 
 GPA = 1e9
+
+
+def fracture_resistance_series(run: Path) -> list[tuple[float, int, float, float]]:
+    """Per ParaView snapshot of a radial run directory (``--snapshots``): time, how many opened
+    contacts the fluid has reached, and the lowest R_s of those fractures and of their sides
+    (:func:`~hmdem.coupling.micromechanics.fracture_and_side_resistance`; digest H8)."""
+    import tomllib
+
+    net = np.load(run / "network.npz")
+    closed_at_start = np.load(run / "fractures.npz")["initially_closed"]
+    fluids = FluidPair(**tomllib.loads((run / "config.toml").read_text())["fluids"])
+    pipe_domains, length = net["pipe_domains"], net["pipe_length"]
+    return [(t, *fracture_and_side_resistance(pipe_domains, length, aperture, opened, closed_at_start, saturation,
+                                              net["inlet_domains"], fluids.viscosity_inv))
+            for t, saturation, aperture, opened in read_series(run, len(net["domain_volume"]))]
 
 
 def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None) -> dict:
