@@ -7,11 +7,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..flow.fluids import FluidPair
 from ..plots import plot_force_chains, plot_fracture_chronology
 from ..report import pattern_fractal_dimension, radial_pattern_dimension, write_run
-from .geometry import contact_gaps
-from ..flow.fluids import FluidPair
 from ..snapshots import read_series
+from .geometry import contact_gaps
 from .micromechanics import (chronology_counts, fracture_and_side_resistance, fracture_timing, lowest_path_resistance,
                              pipe_resistance)
 from .radial import classify_radial_regime, domain_perimeter
