@@ -79,7 +79,8 @@ def resume(checkpoint: Path):
     model.__dict__.setdefault("wetted_time", np.where(data["state"].saturation > 0.0, np.nan, np.inf))
     # a checkpoint saved before the replica (decisions #65): give it one, as a new run would have
     model.__dict__.setdefault("_grains_moved", False)
-    model.__dict__.setdefault("last_volume_change", np.zeros_like(model.volume))  # read by one-way "lagged" only
+    model.__dict__.setdefault("unbooked_volume", np.zeros_like(model.volume))  # read by one-way "lagged" only
+    model.__dict__.setdefault("_last_dt", model.coupling_dt)
     if "replica" not in model.__dict__:
         model.replica = replica_for(grains, model.coupling)
     return model, data["state"]

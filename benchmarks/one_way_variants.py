@@ -10,7 +10,8 @@ one step late ("lagged", ``--one-way-volume lagged``), at the realistic water mo
 and at Zhang et al.'s reduced 0.75 MPa (digest §4), and prints per run: how it ended, steps,
 opened contacts, the lowest and highest injection pressure, H10's count of falls (more than 2 %
 of the running peak between neighbouring points of a 200-point grid, as
-tests/test_huang_full.py counts them) and the single-step falls of more than 2 % and 10 %.
+tests/test_huang_full.py counts them) and the single-step falls of more than 2 % and 10 %;
+on stderr, the injection pressure over each run's first 8 steps.
 Each run takes 1-4 minutes on one core.
 """
 import argparse
@@ -52,6 +53,9 @@ def run(volume: str, water_modulus: float, t_max: float | None) -> str:
     state, rec = model.run(progress=watch)
     t, p = np.array(times), np.array(pressures)
     on_grid, over_2, over_10 = falls(t, p)
+    start = ", ".join(f"{p_k / MPA:.3g}" for p_k in p[:8])
+    print(f"{volume}, K {water_modulus / MPA:g} MPa: p_in over the first steps [MPa] {start} "
+          f"(at t = {t[min(7, len(t) - 1)]:.3g} s)", file=sys.stderr)
     return (f"| {volume} | {water_modulus / MPA:g} | {rec.status} at {state.t:.3g} s | {rec.steps} | "
             f"{int(model.opened.sum())} | {p.min() / MPA:.3g} | {p.max() / MPA:.3g} | {on_grid} | {over_2} | {over_10} |")
 

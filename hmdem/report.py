@@ -134,8 +134,9 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
                       f"{sc.case.name}: mean injection pressure", marked if summary["early_peak_fell"] else None)
         write_vtu(tmp / "domains.vtu", net, state)
         if snapshots is not None:
-            final = [] if snapshots and snapshots[-1].t == state.t else [take(model, state)]
-            write_series(tmp, net, [*snapshots, *final])
+            # the final state closes the series as the files above have it (a run stopped inside
+            # a step that keeps no snapshot holds a trial's grains at the last step's time)
+            write_series(tmp, net, [s for s in snapshots if s.t != state.t] + [take(model, state)])
         if extra_files is not None:
             extra_files(tmp)
     return summary

@@ -1,8 +1,8 @@
 """Run directories: written under a temporary name and renamed when complete.
 
 Contents (issue 2 contract): config.toml, summary.json, timeseries.csv, network.npz, state.npz,
-pattern.png, pressure.png and domains.vtu (ParaView); with --snapshots, domains.pvd over
-snapshots/*.vtu (hmdem/snapshots.py). A crash never leaves a half-written
+pattern.png, pressure.png and domains.vtu (ParaView); with --snapshots, domains.pvd (and for
+moving grains contacts.pvd) over snapshots/*.vtu (hmdem/snapshots.py). A crash never leaves a half-written
 directory under the final name; a Ctrl-C'd run is still written, with status "interrupted".
 """
 

@@ -124,13 +124,18 @@ def read_series(run: Path, n_domains: int):
     grains the pipes' apertures and opened contacts, else None and None)."""
     import meshio
 
-    contacts = dict(read_collection(run / "contacts.pvd")) if (run / "contacts.pvd").is_file() else {}
-    for t, name in read_collection(run / "domains.pvd"):
+    if not (run / "domains.pvd").is_file():
+        raise FileNotFoundError(f"{run}: no domains.pvd (run with --snapshots N)")
+    domains = read_collection(run / "domains.pvd")
+    contacts = read_collection(run / "contacts.pvd") if (run / "contacts.pvd").is_file() else [(None, None)] * len(domains)
+    if len(contacts) != len(domains):
+        raise ValueError(f"{run}: contacts.pvd has {len(contacts)} frames, domains.pvd {len(domains)}")
+    for (t, name), (_, pipes_name) in zip(domains, contacts):
         cells = meshio.read(name).cell_data
         saturation = np.zeros(n_domains)
         saturation[cells["domain"][0]] = cells["saturation"][0]
         aperture = opened = None
-        if t in contacts:
-            pipes = meshio.read(contacts[t]).cell_data
+        if pipes_name is not None:
+            pipes = meshio.read(pipes_name).cell_data
             aperture, opened = pipes["aperture"][0], pipes["opened"][0].astype(bool)
         yield t, saturation, aperture, opened

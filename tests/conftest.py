@@ -48,7 +48,9 @@ def rng():
 
 @pytest.fixture
 def interrupt_after(monkeypatch):
-    """``interrupt_after(n)``: a Ctrl-C (KeyboardInterrupt) right after the n-th accepted flow step."""
+    """``interrupt_after(n)``: a Ctrl-C (KeyboardInterrupt) at the end of ``FlowModel._accept`` of
+    the n-th step: right after it for fixed grains (a coupled model's own _accept would still
+    have its part to do)."""
     from hmdem.flow import simulation
 
     def install(steps: int) -> None:

@@ -252,6 +252,7 @@ def test_one_way_volume_reaches_the_run(tmp_path):
                  "--out", str(out), "--quiet"]) == 0
     coupling = tomllib.loads((out / "config.toml").read_text())["coupling"]
     assert coupling["one_way"] is True and coupling["one_way_volume"] == "lagged"
+    assert json.loads((out / "summary.json").read_text())["one_way_volume"] == "lagged"
 
 
 @pytest.mark.yade

@@ -1,4 +1,4 @@
-"""The Huang cases at paper size (issue 3; digest seed004 §13.3 H1-H4, H6, H10): `make validate`.
+"""The Huang cases at paper size (issue 3; digest seed004 §13.3 H1-H4, H6, H8, H10): `make validate`.
 
 Each case runs once per session, through the same command a user types
 (``python -m hmdem.hele_shaw radial --case X``), to breakthrough; the assertions read the run
@@ -31,7 +31,8 @@ def huang(tmp_path_factory):
         key = (case, *flags)
         if key not in done:
             out = root / "-".join(key).replace("--", "")
-            # 20 ParaView snapshots: read by the H8 test, and they leave the trajectory as it is
+            # ParaView snapshots at each twentieth of the front's way (fewer frames when a step
+            # passes several): read by the H8 test; they leave the trajectory as it is
             cmd = [sys.executable, "-m", "hmdem.hele_shaw", "radial", "--case", case, *flags, "--out", str(out),
                    "--snapshots", "20", "--quiet"]
             subprocess.run(cmd, check=True)
@@ -146,7 +147,7 @@ def test_b3_fractures_open_before_the_fluid_comes(huang):
 def test_b3_fractures_conduct_far_better_than_their_sides(huang):
     # H8: "the lowest pipe flow resistance inside the fracturing zone is only 2.5 GPa s/m2, merely
     # 2 % of the lowest resistance at the sides" (seed 004 §4.2, Fig. 16e; digest bound < 0.1).
-    # Read at each of the run's 20 snapshots where the fluid has reached fractures away from the
+    # Read at each of the run's snapshots where the fluid has reached fractures away from the
     # port, R_s at the invading viscosity (decisions #67). Measured 2026-11-27: 0.084 at 12 us,
     # 0.012 at 32 us (2.05 against 164 GPa s/m2), below 0.01 from 49 us on
     from hmdem.coupling.output import fracture_resistance_series

@@ -46,9 +46,9 @@ def fracture_and_side_resistance(pipe_domains: np.ndarray, length: np.ndarray, a
     """Seed 004 §4.2 on B3 (Fig. 16e; digest H8): "the lowest pipe flow resistance inside the
     fracturing zone is only 2.5 GPa s/m2, merely 2 % of the lowest resistance at the sides".
     Returns how many fractures the fluid has reached (opened contacts with invading fluid in
-    one of their domains, the injection domains' own pipes left out: the port is not the
-    fracturing zone), the lowest R_s (Eq. 27) among them and the lowest among their sides (the
-    contacts of the same domains that have stayed closed and that the fluid has reached), with
+    one of their domains), the lowest R_s (Eq. 27) among them and the lowest among their sides
+    (the contacts of the same domains that have stayed closed and that the fluid has reached);
+    the injection domains' own pipes are in neither set, the port is not the fracturing zone;
     R_s at one ``viscosity`` so that the two compare apertures and lengths, the compaction the
     paper names as the cause (decisions #67). Per pipe: ``pipe_domains`` (m, 2) with OUTSIDE
     for the outer face, ``length``, ``aperture``, ``opened``, ``closed_at_start``; per domain:
@@ -60,7 +60,7 @@ def fracture_and_side_resistance(pipe_domains: np.ndarray, length: np.ndarray, a
     fracture = wetted & opened & ~at_port
     in_fracture = np.zeros(len(saturation), bool)
     in_fracture[np.r_[a[fracture], b[fracture]]] = True
-    side = wetted & closed_at_start & ~opened & (in_fracture[a] | in_fracture[b])
+    side = wetted & ~at_port & closed_at_start & ~opened & (in_fracture[a] | in_fracture[b])
     resistance = 1.0 / conductance(aperture, np.full(len(aperture), viscosity), length)
     return (int(fracture.sum()), float(resistance[fracture].min()) if fracture.any() else float("nan"),
             float(resistance[side].min()) if side.any() else float("nan"))

@@ -110,8 +110,9 @@ class CouplingSetup:
     one_way: bool = False
     # what the one-way variant does with the grains' volume change: "ignored", dV never enters
     # the pressure equation (digest H10's no-dV variant); "lagged", the change of the last
-    # accepted step enters the next step's pressure solve (sequential coupling: mass is booked a
-    # step late; at the realistic K of water B3 collapses, decisions #66)
+    # accepted step enters the next step's pressure solve, at most at the rate it came (a
+    # shorter step books its share, the rest waits), so that every change is booked, a step
+    # late (sequential coupling; at the realistic K of water B3 swings, decisions #66)
     one_way_volume: str = "ignored"
     # rewind the DEM to t^n before every P-V iteration after the first and update p_trial by
     # interface quasi-Newton (IQN-ILS): each iteration is then a function evaluation of one
@@ -195,6 +196,8 @@ class CouplingRecord:
 class CoupledFlowModel(FlowModel):
     """:class:`FlowModel` whose grains move (YADE through :class:`GrainModel`)."""
 
+    _lagging = False  # the solves of this step book the lagged one-way volume change
+
     def __init__(self, net: Network, setup: FlowSetup, grains: GrainModel, coupling: CouplingSetup):
         if coupling.one_way_volume not in ("ignored", "lagged"):
             raise ValueError(f"one_way_volume must be 'ignored' or 'lagged', not {coupling.one_way_volume!r}")
@@ -228,7 +231,8 @@ class CoupledFlowModel(FlowModel):
         self.opened_time = np.full(net.n_pipes, np.inf)  # when each contact first counted as opened
         self.wetted_time = np.full(net.n_domains, np.inf)  # when invading fluid first entered each domain
         self.volume_rate = np.zeros(net.n_domains)  # dV/dt of the last accepted step
-        self.last_volume_change = np.zeros(net.n_domains)  # dV of the last accepted step
+        self.unbooked_volume = np.zeros(net.n_domains)  # lagged one-way: dV moved, not yet in a solve
+        self._last_dt = setup.dt  # the last accepted step (over which its dV came)
         # a list to append a PVEvaluation to at every P-V evaluation (benchmarks/huang_pv_log.py); None: off
         self.pv_log: list | None = None
         self._predicting = False  # front-logic solves use dV = volume_rate x dt
@@ -380,6 +384,8 @@ class CoupledFlowModel(FlowModel):
     def _trial(self, state, dt, g, orient, pc, blocked, hold=False):
         if self._predicting:
             self.volume_change[:] = self.volume_rate * dt
+        elif self._lagging:
+            self.volume_change[:] = self.unbooked_volume * min(1.0, dt / self._last_dt)
         return super()._trial(state, dt, g, orient, pc, blocked, hold)
 
     def _pv_evaluation(self, state, dt, positions, g, orient, pc, blocked):
@@ -392,13 +398,13 @@ class CoupledFlowModel(FlowModel):
         """One flow step at the front logic's dt with the P-V iteration; also returns the
         iteration count and whether it converged."""
         c = self.coupling
-        lagged = c.one_way and c.one_way_volume == "lagged"
-        self.volume_change[:] = self.last_volume_change if lagged else 0.0
+        self.volume_change[:] = 0.0
         self._predicting = c.pv_predictor and not c.one_way
+        self._lagging = c.one_way and c.one_way_volume == "lagged"
         try:
             sol, fill, dt, limiter = super().implicit_step(state, blocked_guess)
         finally:
-            self._predicting = False
+            self._predicting = self._lagging = False
         self._tried_dt = dt
         pockets = np.zeros(0, int)
         if c.pv_pocket_newton and not c.one_way and c.pv_rewind:
@@ -491,8 +497,10 @@ class CoupledFlowModel(FlowModel):
         super()._accept(state, sol, fill, dt, limiter)
         volume = self.domain_volumes(self.positions)
         self.floored |= volume <= self.volume_floor
-        self.last_volume_change = volume - self.volume
-        self.volume_rate = self.last_volume_change / dt
+        # the lagged one-way variant booked volume_change in this step's solve (and its balance)
+        self.unbooked_volume += volume - self.volume - self.volume_change
+        self._last_dt = dt
+        self.volume_rate = (volume - self.volume) / dt
         # saturation is a volume fraction: the invading volume is kept as the domain deforms
         invading = state.saturation * self.volume
         state.saturation = np.where(state.invaded, 1.0, np.clip(invading / volume, 0.0, 1.0))

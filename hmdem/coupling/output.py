@@ -87,6 +87,7 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None) -> 
         "replica_confirmations": cr.confirmations,
         "replica_confirmations_failed": cr.confirmations_failed,
         "one_way": sc.coupling.one_way,
+        "one_way_volume": sc.coupling.one_way_volume,
         "sigma_m": sc.sigma,
         "inlet_domain_perimeter_m": domain_perimeter(net, int(net.inlet_domains[0])),
         "confining_stress_pa": sc.packing.confining_stress,
