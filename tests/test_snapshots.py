@@ -79,3 +79,21 @@ def test_radial_run_writes_deforming_domains_and_the_contacts(tmp_path):
     np.testing.assert_array_equal(last.cell_data["opened"][0].astype(bool), fractures["opened"])
     assert np.abs(first.points - last.points).max() > 0.0  # the grains moved between snapshots
     assert meshio.read(domains[-1][1]).points.shape == last.points.shape
+    # read back frame by frame: the final saturation is state.npz's, the final apertures fractures.npz's
+    from hmdem.coupling.output import fracture_resistance_series
+    from hmdem.snapshots import read_series
+
+    n_domains = len(np.load(out / "network.npz")["domain_volume"])
+    frames = list(read_series(out, n_domains))
+    assert [t for t, *_ in frames] == [t for t, _ in domains]
+    t, saturation, aperture, opened = frames[-1]
+    np.testing.assert_array_equal(saturation, np.load(out / "state.npz")["saturation"])
+    np.testing.assert_array_equal(aperture, fractures["aperture"])
+    assert len(fracture_resistance_series(out)) == len(frames)
+
+
+def test_series_needs_snapshots(tmp_path):
+    from hmdem.snapshots import read_series
+
+    with pytest.raises(FileNotFoundError, match="--snapshots"):
+        next(read_series(tmp_path, 3))
