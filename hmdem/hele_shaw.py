@@ -161,8 +161,7 @@ class FrontProgress:
         if now - self.last < self.every_s:
             return
         self.last = now
-        frac = model.progress(state) if self.setup.two_phase else state.t / self.setup.t_max
-        self.bar.n = round(100 * frac, 1)
+        self.bar.n = round(100 * model.fraction_done(state), 1)
         self.bar.set_postfix_str(f"t={state.t:.4g} s, steps={model.record.steps}, invaded={int(state.invaded.sum())}")
 
     def close(self, finished: bool):

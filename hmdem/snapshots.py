@@ -45,11 +45,7 @@ class SnapshotRecorder:
         self._next = 1  # the multiple of 1 / count the next snapshot waits for
 
     def __call__(self, model, state) -> None:
-        if model.setup.two_phase:
-            fraction = model.progress(state)
-        else:
-            fraction = state.t / model.setup.t_max if math.isfinite(model.setup.t_max) else 0.0
-        reached = math.floor(fraction * self.count + 1e-9)  # multiples of 1 / count passed so far
+        reached = math.floor(model.fraction_done(state) * self.count + 1e-9)  # multiples of 1 / count passed
         if reached >= self._next:
             self.taken.append(take(model, state))
             self._next = reached + 1

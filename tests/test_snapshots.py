@@ -16,9 +16,8 @@ class FakeModel:
 
     def __init__(self, fractions):
         self.fractions = iter(fractions)
-        self.setup = SimpleNamespace(two_phase=True)
 
-    def progress(self, state):
+    def fraction_done(self, state):
         return next(self.fractions)
 
     def grain_snapshot(self):

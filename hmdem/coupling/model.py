@@ -196,8 +196,6 @@ class CouplingRecord:
 class CoupledFlowModel(FlowModel):
     """:class:`FlowModel` whose grains move (YADE through :class:`GrainModel`)."""
 
-    _lagging = False  # the solves of this step book the lagged one-way volume change
-
     def __init__(self, net: Network, setup: FlowSetup, grains: GrainModel, coupling: CouplingSetup):
         if coupling.one_way_volume not in ("ignored", "lagged"):
             raise ValueError(f"one_way_volume must be 'ignored' or 'lagged', not {coupling.one_way_volume!r}")
@@ -384,7 +382,7 @@ class CoupledFlowModel(FlowModel):
     def _trial(self, state, dt, g, orient, pc, blocked, hold=False):
         if self._predicting:
             self.volume_change[:] = self.volume_rate * dt
-        elif self._lagging:
+        elif self.coupling.one_way and self.coupling.one_way_volume == "lagged":  # every solve is a step's
             self.volume_change[:] = self.unbooked_volume * min(1.0, dt / self._last_dt)
         return super()._trial(state, dt, g, orient, pc, blocked, hold)
 
@@ -400,11 +398,10 @@ class CoupledFlowModel(FlowModel):
         c = self.coupling
         self.volume_change[:] = 0.0
         self._predicting = c.pv_predictor and not c.one_way
-        self._lagging = c.one_way and c.one_way_volume == "lagged"
         try:
             sol, fill, dt, limiter = super().implicit_step(state, blocked_guess)
         finally:
-            self._predicting = self._lagging = False
+            self._predicting = False
         self._tried_dt = dt
         pockets = np.zeros(0, int)
         if c.pv_pocket_newton and not c.one_way and c.pv_rewind:

@@ -134,6 +134,12 @@ class FlowModel:
             return 0.0
         return float(np.clip(1.0 - self.dist_to_outlet[state.invaded].min() / self.start_distance, 0.0, 1.0))
 
+    def fraction_done(self, state: FlowState) -> float:
+        """How far the run is: :meth:`progress` for two-phase runs, else t / t_max (0 without one)."""
+        if self.setup.two_phase:
+            return self.progress(state)
+        return state.t / self.setup.t_max if np.isfinite(self.setup.t_max) else 0.0
+
     def pipe_properties(self, state: FlowState):
         """G (Eq. 1 with Eq. 4 viscosity), front orientation and p_c (Eq. 5) of the flowing pipes."""
         s = state.saturation if self.setup.two_phase else np.zeros_like(state.saturation)
