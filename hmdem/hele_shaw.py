@@ -65,6 +65,12 @@ def build_parser() -> argparse.ArgumentParser:
                      help="with --one-way: the grains' volume change is left out (default) or enters the next "
                           "step's pressure solve, one step late (decisions #66)")
     rad.add_argument("--dt", type=positive_number, help="nominal flow step [s] (default per case, Table 4)")
+    rad.add_argument("--grain-density", type=positive_number,
+                     help="density of the 1 m-thick discs [kg/m^3] (default 2650, Table 3); heavier grains yield "
+                          "more slowly to the injection pressure (BENCHMARKS.md: B3's port)")
+    rad.add_argument("--fixed-port", action="store_true",
+                     help="hold the grains around the injection domain in place, a rigid injection tube whose "
+                          "pipes keep their apertures (default: only the boundary grains are fixed; decisions #68)")
     rad.add_argument("--dem-cycles", type=positive_number,
                      help="DEM cycles per flow step (the paper: 2000); default: the stable DEM step")
     rad.add_argument("--pv-tol", type=positive_number, help="P-V iteration relative tolerance (default 1e-3)")
@@ -263,7 +269,8 @@ def run_radial(args) -> int:
         case = replace_case(case, dt=args.dt)
     packing = DiscPacking.load(args.packing) if args.packing else None
     sc = build_radial_scenario(case, packing, ca_star=args.ca_star, viscosity_ratio=args.viscosity_ratio,
-                               one_way=args.one_way, sigma=args.sigma)
+                               one_way=args.one_way, sigma=args.sigma, fixed_port=args.fixed_port,
+                               **({} if args.grain_density is None else {"grain_density": args.grain_density}))
     for flag, field, convert in COUPLING_FLAGS:
         if getattr(args, flag) is not None:
             setattr(sc.coupling, field, convert(getattr(args, flag)))

@@ -32,6 +32,7 @@ CMD = [sys.executable, "-m", "hmdem.hele_shaw"]
     (["radial", "--pv-reuse-steps", "-1"], "--pv-reuse-steps"),
     (["radial", "--pv-max-columns", "0"], "--pv-max-columns"),
     (["radial", "--damping", "1"], "--damping"),
+    (["radial", "--grain-density", "0"], "--grain-density"),
 ])
 def test_bad_input_one_line_exit_2_nothing_written(tmp_path, args, name):
     out = tmp_path / "run"
@@ -206,6 +207,25 @@ def test_radial_run_directory_contract(tmp_path):
     assert config["coupling"]["pv_reuse_steps"] == 5
     # the count YADE runs with (import_yade: OMP_NUM_THREADS if set, else 1)
     assert config["dem"]["threads"] == int(os.environ.get("OMP_NUM_THREADS", "1"))
+
+
+@pytest.mark.yade
+def test_fixed_port_and_grain_density_reach_the_dem(tmp_path):
+    # --fixed-port holds the injection domain's grains where the packing put them while B3's
+    # pressure (MPa within microseconds) moves their neighbours; --grain-density sets the disc
+    # masses rho pi r^2 x 1 m that the DEM integrates; both are recorded (decisions #68)
+    from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, port_grains
+
+    out = tmp_path / "b3"
+    assert main(["radial", "--case", "B3", "--max-steps", "6", "--fixed-port", "--grain-density", "5300",
+                 "--out", str(out), "--quiet"]) == 0
+    fractures = np.load(out / "fractures.npz")
+    port = port_grains(build_radial_scenario(RADIAL_CASES["B3"]).net)
+    moved = np.linalg.norm(fractures["positions"] - fractures["initial_positions"], axis=1)
+    assert np.all(moved[port] == 0.0) and moved.max() > 1e-7
+    config = tomllib.loads((out / "config.toml").read_text())
+    assert config["dem"]["fixed_port"] is True and config["dem"]["grain_density_kg_m3"] == 5300.0
+    assert json.loads((out / "summary.json").read_text())["fixed_port"] is True
 
 
 @pytest.mark.yade

@@ -130,6 +130,16 @@ def test_rewind_interrupted_half_way_is_completed_by_the_next(small_sample, monk
     assert np.array_equal(grains.positions(), positions) and np.array_equal(grains.velocities(), velocities)
 
 
+def test_grain_density_sets_the_disc_masses(small_sample):
+    # --grain-density: 1 m-thick discs of rho pi r^2 (digest §15.1), also in the numba replica
+    from hmdem.coupling.replica import DiscReplica
+
+    sc = build_radial_scenario(RADIAL_CASES["B3"], packing=small_sample, grain_density=5300.0)
+    grains = start_grains(sc)
+    assert grains.masses() == pytest.approx(5300.0 * np.pi * grains.radii**2, rel=1e-12)
+    assert DiscReplica.of(grains).masses() == pytest.approx(grains.masses(), rel=0)
+
+
 def run_small(sample, one_way, steps=60, one_way_volume="ignored"):
     sc = build_radial_scenario(RADIAL_CASES["A3"], packing=sample, one_way=one_way)
     sc.coupling.one_way_volume = one_way_volume

@@ -308,6 +308,18 @@ def test_radial_scenario_fixes_every_boundary_grain():
     assert not sc.fixed[inlet_grains].any()
 
 
+def test_fixed_port_holds_the_inflow_domains_grains_as_well():
+    # --fixed-port (decisions #68): the grains around the injection domain join the boundary ones
+    from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario
+
+    free = build_radial_scenario(RADIAL_CASES["B3"])
+    held = build_radial_scenario(RADIAL_CASES["B3"], fixed_port=True)
+    inlet_grains = np.unique(held.net.pipe_grains[(held.net.pipe_domains == held.net.inlet_domains[0]).any(axis=1)])
+    assert len(inlet_grains) >= 3  # a polygon
+    assert held.fixed[inlet_grains].all() and held.fixed_port and not free.fixed_port
+    assert np.array_equal(held.fixed, free.fixed | np.isin(np.arange(len(free.fixed)), inlet_grains))
+
+
 def test_radial_injection_rate_from_the_papers_inlet_perimeter():
     # decisions.md #21: Sigma = 0.2 L (the paper's 0.25 mm of 1.25 mm, digest §10.3), so
     # Q = Ca* 0.2 gamma a0 / eta_inv, independent of the sample size; A1 gets 3.04e-5 m^3/s per m, and

@@ -88,6 +88,7 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None) -> 
         "replica_confirmations_failed": cr.confirmations_failed,
         "one_way": sc.coupling.one_way,
         "one_way_volume": sc.coupling.one_way_volume,
+        "fixed_port": sc.fixed_port,
         "sigma_m": sc.sigma,
         "inlet_domain_perimeter_m": domain_perimeter(net, int(net.inlet_domains[0])),
         "confining_stress_pa": sc.packing.confining_stress,
@@ -116,7 +117,8 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None) -> 
               "aperture_law": vars(sc.coupling.aperture_law),
               "dem": {"timestep_s": grains.timestep, "stable_timestep_s": sc.coupling.stable_dem_step,
                       "n_grains": len(grains.radii), "n_fixed": int(np.sum(sc.fixed)), "threads": grains.threads,
-                      "damping": grains.damping}}
+                      "damping": grains.damping, "grain_density_kg_m3": sc.grain_density,
+                      "fixed_port": sc.fixed_port}}
     overlay = positions[g[opened]]
     return write_run(out, sc, model, state, rec, seed=0, argv=argv, summary_extra=extra, extra_files=files,
                      overlay=overlay, config_extra=config, snapshots=snapshots)

@@ -30,6 +30,7 @@ AIR_VISCOSITY = 0.018 * CP
 # Sigma / L of Eq. 24: the paper's ~0.25 mm inlet perimeter on its 1.25 mm sample (digest §10.3)
 PAPER_SIGMA_OVER_LENGTH = 0.2
 SETTLE_CYCLES = 2000  # relaxation after loading the packing (contact shear history is not stored)
+GRAIN_DENSITY = 2650.0  # kg/m^3, seed 004 Table 3 (quartz sand)
 
 
 def huang_fluids(viscosity_inv: float) -> FluidPair:
@@ -108,7 +109,9 @@ class RadialScenario:
     sigma: float
     length: float
     ca_star: float
-    fixed: np.ndarray  # boundary grains held in place (the wall ring and the contact graph's hull)
+    fixed: np.ndarray  # grains held in place (the wall ring, the contact graph's hull; the port's with fixed_port)
+    grain_density: float = GRAIN_DENSITY  # kg/m^3 of the 1 m-thick discs
+    fixed_port: bool = False  # the inflow domain's grains are held too (a rigid injection tube)
 
     @property
     def packing_radii(self) -> np.ndarray:
@@ -117,9 +120,13 @@ class RadialScenario:
 
 def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, ca_star: float | None = None,
                           viscosity_ratio: float | None = None, one_way: bool = False,
-                          aperture_law: ApertureLaw | None = None, sigma: float | None = None) -> RadialScenario:
+                          aperture_law: ApertureLaw | None = None, sigma: float | None = None,
+                          grain_density: float = GRAIN_DENSITY, fixed_port: bool = False) -> RadialScenario:
     """Network, flow set-up and coupling parameters of a radial case (no DEM yet, no YADE).
-    ``sigma``: the Eq. 24 inlet perimeter Sigma [m] (default :data:`PAPER_SIGMA_OVER_LENGTH` x L)."""
+    ``sigma``: the Eq. 24 inlet perimeter Sigma [m] (default :data:`PAPER_SIGMA_OVER_LENGTH` x L).
+    ``grain_density``: of the discs [kg/m^3]; it sets how fast the port's grains yield (BENCHMARKS.md).
+    ``fixed_port``: hold the grains around the inflow domain as well, a rigid injection tube
+    whose pipes keep their apertures (decisions.md #68); the seed fixes the boundary grains only."""
     pk = packing or DiscPacking.load(default_huang_packing_path())
     net = radial_network(pk, case.contact_gap)
     eta_inv = case.viscosity_inv if viscosity_ratio is None else viscosity_ratio * AIR_VISCOSITY
@@ -137,7 +144,14 @@ def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, 
     fixed = hull_grains(net)
     if len(pk.fixed):
         fixed |= pk.fixed
-    return RadialScenario(case, pk, net, setup, coupling, sigma, length, ca, fixed)
+    if fixed_port:
+        fixed[port_grains(net)] = True
+    return RadialScenario(case, pk, net, setup, coupling, sigma, length, ca, fixed, grain_density, fixed_port)
+
+
+def port_grains(net: Network) -> np.ndarray:
+    """The grains around the inflow domains: the ends of their pipes."""
+    return np.unique(net.pipe_grains[np.isin(net.pipe_domains, net.inlet_domains).any(axis=1)])
 
 
 def start_grains(sc: RadialScenario, threads: int | None = None):
@@ -147,7 +161,7 @@ def start_grains(sc: RadialScenario, threads: int | None = None):
     from ..dem.assembly import DiscAssembly
 
     pk = sc.packing
-    grains = DiscAssembly(pk.centres, pk.radii, fixed=sc.fixed, threads=threads)
+    grains = DiscAssembly(pk.centres, pk.radii, fixed=sc.fixed, density=sc.grain_density, threads=threads)
     grains.run(SETTLE_CYCLES)
     grains.damping = sc.coupling.dem_damping
     sc.coupling.stable_dem_step = grains.timestep = grains.stable_timestep()
