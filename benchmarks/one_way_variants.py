@@ -44,14 +44,8 @@ def run(volume: str, water_modulus: float, t_max: float | None) -> str:
     if t_max is not None:
         sc.setup.t_max = t_max
     model = CoupledFlowModel(sc.net, sc.setup, start_grains(sc), sc.coupling)
-    times, pressures = [], []
-
-    def watch(m, state):
-        times.append(state.t)
-        pressures.append(float(np.mean(state.pressure[m.inlet])))
-
-    state, rec = model.run(progress=watch)
-    t, p = np.array(times), np.array(pressures)
+    state, rec = model.run()
+    t, p = rec.injection_pressure()
     on_grid, over_2, over_10 = falls(t, p)
     start = ", ".join(f"{p_k / MPA:.3g}" for p_k in p[:8])
     print(f"{volume}, K {water_modulus / MPA:g} MPa: p_in over the first steps [MPa] {start} "

@@ -18,6 +18,7 @@ from .cases import CASES
 from .cli import (InputError, OneLineParser, dispatch, local_damping, new_run_directory, non_negative_int, positive_int,
                   positive_number)
 from .flow.fluids import WEAK_COMPRESSION
+from .network.packing import GRAIN_DENSITY
 from .snapshots import SnapshotRecorder
 
 PROG = "python -m hmdem.hele_shaw"
@@ -65,8 +66,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="with --one-way: the grains' volume change is left out (default) or enters the next "
                           "step's pressure solve, one step late (decisions #66)")
     rad.add_argument("--dt", type=positive_number, help="nominal flow step [s] (default per case, Table 4)")
-    rad.add_argument("--grain-density", type=positive_number,
-                     help="density of the 1 m-thick discs [kg/m^3] (default 2650, Table 3); heavier grains yield "
+    rad.add_argument("--grain-density", type=positive_number, default=GRAIN_DENSITY,
+                     help="density of the 1 m-thick discs [kg/m^3] (default %(default)g, Table 3); heavier grains yield "
                           "more slowly to the injection pressure (BENCHMARKS.md: B3's port)")
     rad.add_argument("--fixed-port", action="store_true",
                      help="hold the grains around the injection domain in place, a rigid injection tube whose "
@@ -270,7 +271,7 @@ def run_radial(args) -> int:
     packing = DiscPacking.load(args.packing) if args.packing else None
     sc = build_radial_scenario(case, packing, ca_star=args.ca_star, viscosity_ratio=args.viscosity_ratio,
                                one_way=args.one_way, sigma=args.sigma, fixed_port=args.fixed_port,
-                               **({} if args.grain_density is None else {"grain_density": args.grain_density}))
+                               grain_density=args.grain_density)
     for flag, field, convert in COUPLING_FLAGS:
         if getattr(args, flag) is not None:
             setattr(sc.coupling, field, convert(getattr(args, flag)))

@@ -41,9 +41,8 @@ def summarize(sc, model, state, rec, d_f: float | None = None) -> dict:
     """The summary.json keys; ``d_f`` if already measured (a coupled run measures it on the
     reference configuration)."""
     net, fluids = sc.net, sc.setup.fluids
-    rows = rec.rows
-    times, pressures = np.array([r[0] for r in rows]), np.array([r[2] for r in rows])
-    p_in = pressures if rows else np.zeros(1)
+    times, pressures = rec.injection_pressure()
+    p_in = pressures if rec.rows else np.zeros(1)
     early = early_peak(times, pressures)
     volume = net.domain_volume
     saturation = float(np.sum(state.saturation * volume) / np.sum(volume))
@@ -130,7 +129,7 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
                 f"{summary['regime']}, D_f = {summary['fractal_dimension']:.3f}"
         plot_pattern(tmp / "pattern.png", net, state.saturation, title, sc.packing_radii, overlay)
         marked = {"time": summary["early_peak_time_s"], "pressure": summary["early_peak_injection_pressure_pa"]}
-        plot_pressure(tmp / "pressure.png", net, state.pressure, [r[0] for r in rec.rows], [r[2] for r in rec.rows],
+        plot_pressure(tmp / "pressure.png", net, state.pressure, *rec.injection_pressure(),
                       f"{sc.case.name}: mean injection pressure", marked if summary["early_peak_fell"] else None)
         write_vtu(tmp / "domains.vtu", net, state)
         if snapshots is not None:

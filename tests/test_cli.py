@@ -210,10 +210,10 @@ def test_radial_run_directory_contract(tmp_path):
 
 
 @pytest.mark.yade
-def test_fixed_port_and_grain_density_reach_the_dem(tmp_path):
+def test_fixed_port_holds_the_port_grains_and_both_flags_are_recorded(tmp_path):
     # --fixed-port holds the injection domain's grains where the packing put them while B3's
-    # pressure (MPa within microseconds) moves their neighbours; --grain-density sets the disc
-    # masses rho pi r^2 x 1 m that the DEM integrates; both are recorded (decisions #68)
+    # pressure (MPa within microseconds) moves their neighbours; --grain-density is recorded
+    # with it (decisions #68; its masses and DEM step: test_coupled_run)
     from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, port_grains
 
     out = tmp_path / "b3"

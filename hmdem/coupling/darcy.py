@@ -32,7 +32,7 @@ from ..calibration import kozeny_carman, porosity_2d_to_3d
 from ..flow.fluids import conductance
 from ..network.boundaries import linear_flow_boundaries
 from ..network.network import Network
-from ..network.packing import DiscPacking
+from ..network.packing import GRAIN_DENSITY, DiscPacking
 from .apertures import ApertureLaw
 from .geometry import contact_gaps
 from .radial import radial_network
@@ -210,7 +210,7 @@ def packing_permeability(pk: DiscPacking, law: ApertureLaw | None = None, contac
 
 def permeability_sweep(stresses=STRESSES, n: int = 1395, seed: int = 0, *, size: float = 1.25e-3,
                        r_min: float = 13.0e-6, r_max: float = 21.6e-6, k_n: float = 7.49e7,
-                       density: float = 2650.0, law: ApertureLaw | None = None, contact_gap: float = 0.08,
+                       density: float = GRAIN_DENSITY, law: ApertureLaw | None = None, contact_gap: float = 0.08,
                        progress=None) -> list[PackingPermeability]:
     """Compact the sample (same seed, hence the same initial seeding) to each confining stress
     with :func:`hmdem.dem.compaction.compact_sample` and return the permeability at each.

@@ -22,7 +22,7 @@ from ..network import build_contact_network, find_contacts
 from ..network.boundaries import central_injection_boundaries
 from ..network.contact_graph import hull_grains
 from ..network.network import Network
-from ..network.packing import DiscPacking
+from ..network.packing import GRAIN_DENSITY, DiscPacking
 from .apertures import ApertureLaw
 from .model import CouplingSetup
 
@@ -30,7 +30,6 @@ AIR_VISCOSITY = 0.018 * CP
 # Sigma / L of Eq. 24: the paper's ~0.25 mm inlet perimeter on its 1.25 mm sample (digest §10.3)
 PAPER_SIGMA_OVER_LENGTH = 0.2
 SETTLE_CYCLES = 2000  # relaxation after loading the packing (contact shear history is not stored)
-GRAIN_DENSITY = 2650.0  # kg/m^3, seed 004 Table 3 (quartz sand)
 
 
 def huang_fluids(viscosity_inv: float) -> FluidPair:
@@ -149,9 +148,14 @@ def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, 
     return RadialScenario(case, pk, net, setup, coupling, sigma, length, ca, fixed, grain_density, fixed_port)
 
 
+def port_pipes(net: Network) -> np.ndarray:
+    """Mask of the inflow domains' pipes."""
+    return np.isin(net.pipe_domains, net.inlet_domains).any(axis=1)
+
+
 def port_grains(net: Network) -> np.ndarray:
     """The grains around the inflow domains: the ends of their pipes."""
-    return np.unique(net.pipe_grains[np.isin(net.pipe_domains, net.inlet_domains).any(axis=1)])
+    return np.unique(net.pipe_grains[port_pipes(net)])
 
 
 def start_grains(sc: RadialScenario, threads: int | None = None):

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..calibration import mohr_coulomb_friction_angle
-from ..network.packing import DiscPacking
+from ..network.packing import GRAIN_DENSITY, DiscPacking
 from ..yade_env import import_yade
 from .assembly import run_cycles
 from .compaction import WALLS, compact_sample
@@ -214,7 +214,7 @@ class _Walls:
 
 def load_biaxial(pk: DiscPacking, sigma3: float = SIGMA3, strain_rate: float = STRAIN_RATE,
                  max_strain: float = MAX_STRAIN, *, friction: float = FRICTION, k_n: float = 7.49e7,
-                 density: float = 2650.0, damping: float = 0.7, r_max: float = 21.6e-6,
+                 density: float = GRAIN_DENSITY, damping: float = 0.7, r_max: float = 21.6e-6,
                  fit_strain: tuple[float, float] = FIT_STRAIN, chunk: int = CHUNK, progress=None) -> BiaxialResult:
     """Shear a compacted packing (walls at 0, W, 0, H, as :func:`compact_sample` returns it).
 
@@ -282,7 +282,7 @@ def load_biaxial(pk: DiscPacking, sigma3: float = SIGMA3, strain_rate: float = S
 
 def run_biaxial(n: int = 1395, sigma3: float = SIGMA3, strain_rate: float = STRAIN_RATE, seed: int = 0,
                 max_strain: float = MAX_STRAIN, *, r_min: float = 13.0e-6, r_max: float = 21.6e-6,
-                k_n: float = 7.49e7, density: float = 2650.0, friction: float = FRICTION,
+                k_n: float = 7.49e7, density: float = GRAIN_DENSITY, friction: float = FRICTION,
                 size: float | None = None, fit_strain: tuple[float, float] = FIT_STRAIN,
                 packing: DiscPacking | None = None, progress=None, compaction_progress=None) -> BiaxialResult:
     """The full calibration test: frictionless isotropic compaction of ``n`` discs to ``sigma3``

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..network.packing import DiscPacking
+from ..network.packing import GRAIN_DENSITY, DiscPacking
 from ..yade_env import import_yade
 from .assembly import run_cycles
 from .discs import add_discs, disc_contacts, disc_engines, disc_state
@@ -23,7 +23,7 @@ WALLS = ((0, -1), (0, +1), (1, -1), (1, +1))  # (axis, side): left, right, botto
 
 
 def compact_sample(n: int = 1395, size: float = 1.25e-3, r_min: float = 13.0e-6, r_max: float = 21.6e-6,
-                   stress: float = 0.14e6, seed: int = 0, k_n: float = 7.49e7, density: float = 2650.0,
+                   stress: float = 0.14e6, seed: int = 0, k_n: float = 7.49e7, density: float = GRAIN_DENSITY,
                    loose_factor: float = 1.15, tolerance: float = 0.005, max_cycles: int = 400_000,
                    progress=None) -> DiscPacking:
     """Compact n discs to the confining ``stress`` [Pa]; returns the packing with ``fixed`` set.

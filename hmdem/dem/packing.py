@@ -12,7 +12,7 @@ import time
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..network.packing import DiscPacking
+from ..network.packing import GRAIN_DENSITY, DiscPacking
 from .discs import add_discs, disc_contacts, disc_engines, disc_state
 
 
@@ -53,7 +53,7 @@ def generate_packing(
     porosity: float = 0.117,
     seed: int = 0,
     k_n: float = 7.49e7,
-    density: float = 2650.0,
+    density: float = GRAIN_DENSITY,
     growth_stages: int = 60,
     cycles_per_stage: int = 300,
     relax_cycles: int = 4000,

@@ -73,6 +73,10 @@ class RunRecord:
     wall_time: float = 0.0
     wall_start: float = field(default_factory=time.perf_counter, repr=False, compare=False)
 
+    def injection_pressure(self) -> tuple[np.ndarray, np.ndarray]:
+        """(t, mean injection pressure) of the recorded steps (timeseries.csv's t, p_in_mean)."""
+        return np.array([r[0] for r in self.rows], float), np.array([r[2] for r in self.rows], float)
+
     def run_mass_balance_error(self, rate: float, t: float) -> float:
         """|stored + outflow - injected| / injected over the whole run (all steps' defects and
         the rounding of the stored pressures included)."""

@@ -6,6 +6,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+GRAIN_DENSITY = 2650.0  # kg/m^3 of the grains (quartz sand, seed 004 Table 3)
+
 
 @dataclass
 class DiscPacking:
