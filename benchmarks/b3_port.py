@@ -1,15 +1,16 @@
 """What holds B3's injection port, and what raises its pressure later (digest H4; decisions #68).
 
-    .venv/bin/python benchmarks/b3_port.py [--t-max 3e-5] [--variants free dem2000 rho10 rho100 fixed]
+    .venv/bin/python benchmarks/b3_port.py [--t-max 3e-5] [--variants free dem2000 rho10 rho100 fixed no_compaction]
 
 Seed 004 has B3 peak at 9.73 MPa while "the flow resistance around the injection port remains
-relatively high" (44.4 GPa s/m^2), then decline to a plateau (H4). This runs paper-size B3 with
-the port's grains free (the default), with the paper's 2000 DEM cycles per flow step, with 10x
-and 100x heavier grains (``--grain-density``) and with the port's grains held
-(``--fixed-port``), and prints per run: the early peak of the injection pressure and when (decisions #51), the pressure at
-10, 20 and 29 us and on a 10-point grid of the run (the test's H4 reading), the late rise
-p(end) / p(end / 5), how the run ended, the fractal dimension, the largest grain displacement and
-the mean aperture of the port's pipes at the end.
+relatively high" (44.4 GPa s/m^2), then decline to a plateau (H4). This runs paper-size B3 with the
+port's grains free (the default), with the paper's 2000 DEM cycles per flow step, with 10x and 100x
+heavier grains (``--grain-density``) and with the port's grains held (``--fixed-port``), and, as a
+diagnostic of the later rise, with closed contacts keeping a0 whatever their force (Eq. 13 switched
+off), and prints per run: the early peak of the injection pressure and when (decisions #51), the
+pressure at 10, 20 and 29 us and on a 10-point grid of the run (the test's H4 reading), the late
+rise p(end) / p(end / 5), how the run ended, the fractal dimension, the largest grain displacement
+and the mean aperture of the port's pipes at the end.
 Short runs (``--t-max 3e-5``) take 10-40 s each; to breakthrough 3-5 minutes each, on one core.
 """
 import argparse
@@ -20,6 +21,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from hmdem.coupling.apertures import ApertureLaw  # noqa: E402
 from hmdem.coupling.model import CoupledFlowModel  # noqa: E402
 from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, port_pipes, start_grains  # noqa: E402
 from hmdem.flow.diagnostics import early_peak  # noqa: E402
@@ -33,6 +35,8 @@ VARIANTS = {  # label -> (build_radial_scenario keywords, CouplingSetup fields)
     "rho10": ({"grain_density": 10 * GRAIN_DENSITY}, {}),
     "rho100": ({"grain_density": 100 * GRAIN_DENSITY}, {}),
     "fixed": ({"fixed_port": True}, {}),
+    # a diagnostic, not a model: closed contacts keep a0 whatever their force (Eq. 13 with F0 -> inf)
+    "no_compaction": ({"aperture_law": ApertureLaw(half_aperture_force=1e30)}, {}),
 }
 
 
