@@ -228,17 +228,22 @@ def test_yade_batch_runs_the_radial_script(tmp_path):
     # existing YADE users: yade-batch + readParamsFromTable drive the same run as the CLI
     import json
     import subprocess
+    import tomllib
     from pathlib import Path
 
     script = Path(__file__).resolve().parent.parent / "yade_scripts" / "radial_injection.py"
     table = tmp_path / "short.table"
-    table.write_text("description case oneWay maxSteps\ntwo_way 'B3' 0 2\none_way 'B3' 1 2\n")
+    table.write_text("description case oneWay maxSteps fixedPort grainDensity\n"
+                     "two_way 'B3' 0 2 0 0\none_way 'B3' 1 2 1 5300\n")
     proc = subprocess.run(["yade-batch", "--job-threads", "1", "-j", "2", "--log", str(tmp_path / "@.log"),
                            str(table), str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stdout[-2000:]
-    for name, one_way in (("two_way", False), ("one_way", True)):
+    for name, one_way, density in (("two_way", False, 2650.0), ("one_way", True, 5300.0)):
         summary = json.loads((tmp_path / "runs" / "batch" / name / "summary.json").read_text())
         assert summary["case"] == "B3" and summary["steps"] == 2 and summary["one_way"] is one_way
+        assert summary["fixed_port"] is one_way  # the second row holds the port too
+        config = tomllib.loads((tmp_path / "runs" / "batch" / name / "config.toml").read_text())
+        assert config["dem"]["grain_density_kg_m3"] == density
 
 
 def test_continued_pv_iteration_converges_and_conserves_mass(small_sample):
