@@ -13,7 +13,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from ..flow.fluids import FluidPair, conductance
-from ..network.network import OUTSIDE, Network
+from ..network.network import OUTSIDE, Network, pipes_touching
 
 
 def pipe_resistance(net: Network, fluids: FluidPair, saturation: np.ndarray, pipes: np.ndarray) -> np.ndarray:
@@ -56,7 +56,7 @@ def fracture_and_side_resistance(pipe_domains: np.ndarray, length: np.ndarray, a
     inner = (pipe_domains != OUTSIDE).all(axis=1)
     a, b = np.where(inner[:, None], pipe_domains, 0).T
     wetted = inner & ((saturation[a] > 0.0) | (saturation[b] > 0.0))
-    at_port = np.isin(pipe_domains, inlet).any(axis=1)
+    at_port = pipes_touching(pipe_domains, inlet)
     fracture = wetted & opened & ~at_port
     in_fracture = np.zeros(len(saturation), bool)
     in_fracture[np.r_[a[fracture], b[fracture]]] = True

@@ -21,7 +21,7 @@ from ..flow.simulation import FlowSetup
 from ..network import build_contact_network, find_contacts
 from ..network.boundaries import central_injection_boundaries
 from ..network.contact_graph import hull_grains
-from ..network.network import Network
+from ..network.network import Network, pipes_touching
 from ..network.packing import GRAIN_DENSITY, DiscPacking
 from .apertures import ApertureLaw
 from .model import CouplingSetup
@@ -150,7 +150,7 @@ def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, 
 
 def port_pipes(net: Network) -> np.ndarray:
     """Mask of the inflow domains' pipes."""
-    return np.isin(net.pipe_domains, net.inlet_domains).any(axis=1)
+    return pipes_touching(net.pipe_domains, net.inlet_domains)
 
 
 def port_grains(net: Network) -> np.ndarray:

@@ -20,6 +20,11 @@ import numpy as np
 OUTSIDE = -1
 
 
+def pipes_touching(pipe_domains: np.ndarray, domains) -> np.ndarray:
+    """Mask of the pipes with one of ``domains`` on either side (e.g. the injection port's)."""
+    return np.isin(pipe_domains, domains).any(axis=1)
+
+
 @dataclass
 class Network:
     """Domains and pipes of a planar pore network (seed 004 §2.1, digest §3).
