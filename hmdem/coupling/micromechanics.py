@@ -108,3 +108,30 @@ def chronology_counts(masks: dict, opened: np.ndarray, opened_time: np.ndarray) 
         "n_opened_before_fluid": int(masks["before_fluid"].sum()),
         "n_opened_in_invaded_zone": int(masks["in_invaded_zone"].sum()),
     }
+
+
+STEP_ENERGY_KEYS = ("time_s", "injection_pressure_pa", "injection_energy_j", "residual_energy_j",
+                    "dissipated_fraction")
+
+
+def energy_partition(times: np.ndarray, injection_pressure: np.ndarray, injected: np.ndarray,
+                     dissipated: np.ndarray, onset_time: float) -> dict:
+    """Summary keys for the per-step energy partition of seed 004 Figs. 15-16 (Eqs. 25-26;
+    digest H7): the injection energy dE_in = p_in Q dt of one step, the residual energy
+    dE_f = dE_in - dE_v left for compressing the fluid and moving the grains, and the
+    dissipated fraction dE_v / dE_in, at two steps the paper reads (decisions #69):
+    ``first_step_*``, the first step, with the port still holding air (A3: 5.1 kPa, 2.5 uJ,
+    28 % dissipated); ``fracture_onset_*``, the step at whose end the first contact counted as
+    opened (``onset_time``; A3: 393.4 kPa, 194.5 uJ, 86 %, dE_f 27.4 uJ; B3: 4076.1 kPa,
+    dE_f 134.7 uJ). Per recorded step: ``times`` (its end), ``injection_pressure``,
+    ``injected`` and ``dissipated`` [J per m of depth]; nan where there is no such step."""
+    t, nan = np.asarray(times, float), float("nan")
+    later = np.flatnonzero(t >= onset_time) if np.isfinite(onset_time) else []
+    keys = {}
+    for name, k in (("first_step", 0 if len(t) else None), ("fracture_onset", later[0] if len(later) else None)):
+        values = (nan,) * len(STEP_ENERGY_KEYS)
+        if k is not None:
+            e_in, e_v = float(injected[k]), float(dissipated[k])
+            values = (float(t[k]), float(injection_pressure[k]), e_in, e_in - e_v, e_v / e_in if e_in > 0 else nan)
+        keys |= {f"{name}_{key}": value for key, value in zip(STEP_ENERGY_KEYS, values)}
+    return keys

@@ -12,8 +12,8 @@ from ..plots import plot_force_chains, plot_fracture_chronology
 from ..report import pattern_fractal_dimension, radial_pattern_dimension, write_run
 from ..snapshots import read_series
 from .geometry import contact_gaps
-from .micromechanics import (chronology_counts, fracture_and_side_resistance, fracture_timing, lowest_path_resistance,
-                             pipe_resistance)
+from .micromechanics import (chronology_counts, energy_partition, fracture_and_side_resistance, fracture_timing,
+                             lowest_path_resistance, pipe_resistance)
 from .radial import classify_radial_regime, domain_perimeter
 
 GPA = 1e9
@@ -70,6 +70,8 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None) -> 
         "mean_pipe_resistance_gpa_s_per_m2": float(np.mean(resistance)) / GPA,
         "lowest_path_resistance_gpa_s_per_m2": path / GPA,
         "dissipated_fraction": rec.dissipated_energy / rec.injection_energy if rec.injection_energy else float("nan"),
+        # Figs. 15-16: one step's energies, with the port still air-filled and as the first contact opens
+        **energy_partition(*rec.step_energies(), chronology["first_opening_time_s"]),
         "max_grain_displacement_m": float(np.linalg.norm(positions - initial_positions, axis=1).max()),
         "mean_pv_iterations": float(np.mean(cr.pv_iterations)) if cr.pv_iterations else 0.0,
         "max_pv_iterations": int(max(cr.pv_iterations)) if cr.pv_iterations else 0,
