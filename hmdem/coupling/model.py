@@ -218,6 +218,7 @@ class CoupledFlowModel(FlowModel):
         self.reference_volume = initial_volume
         self.volume[:] = self.reference_volume
         initial_force = grains.normal_forces(self.contact_pairs)
+        self.initial_force = initial_force  # per pipe [N per m]: Figs. 15c-16c name the weak contacts that open first
         self.initially_closed = initial_force > 0.0
         # a contact counts as opened (a fracture) once its surfaces have separated by more than
         # the mean elastic overlap of the sample's contacts, F_mean / k_n (decisions.md): smaller

@@ -99,6 +99,7 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None) -> 
     def files(tmp: Path) -> None:
         np.savez_compressed(tmp / "fractures.npz", opened=opened, open_at_end=model.open_now, detached=model.detached,
                             max_gap=model.max_gap, opened_time=model.opened_time,
+                            initial_contact_force=model.initial_force,
                             pore_wetted_time=model.wetted_time,
                             pipe_grains=g, gap=gap,
                             aperture=net.pipe_aperture, initially_closed=model.initially_closed,
