@@ -200,6 +200,21 @@ def test_radial_run_directory_contract(tmp_path):
     assert summary["n_opened_before_fluid"] == np.sum(reached & (opened_time < entered.min(axis=1)))
     assert summary["n_opened_in_invaded_zone"] == np.sum(opened & np.isfinite(filled).all(axis=1))
     assert fractures["positions"].shape == (1395, 2)
+    # each contact's force after settling: positive for the contacts the sample starts with
+    # (the servo-compacted 0.14 MPa packing, mean ~4.5 N per m)
+    initial = fractures["initial_contact_force"]
+    assert initial.shape == opened.shape and np.all(initial[fractures["initially_closed"]] > 0.0)
+    assert 3.0 < initial[fractures["initially_closed"]].mean() < 6.0
+    # Figs. 15-16's per-step energies (decisions #69): the first step's, and the step at whose end
+    # the first contact opened; each step's injection energy is p_in Q dt (Eq. 25)
+    series = np.genfromtxt(out / "timeseries.csv", delimiter=",", names=True, dtype=None, encoding=None)
+    assert summary["first_step_injection_energy_j"] == pytest.approx(
+        series["p_in_mean"][0] * summary["rate_m3_per_s_per_m"] * series["dt"][0], rel=1e-12)
+    onset = int(np.flatnonzero(series["t"] == summary["first_opening_time_s"])[0])
+    assert summary["fracture_onset_injection_pressure_pa"] == series["p_in_mean"][onset]
+    assert summary["fracture_onset_residual_energy_j"] == pytest.approx(
+        np.diff(series["energy"], prepend=0.0)[onset] - np.diff(series["dissipation"], prepend=0.0)[onset], rel=1e-9)
+    assert 0.0 < summary["fracture_onset_dissipated_fraction"] < 1.0
     config = tomllib.loads((out / "config.toml").read_text())
     assert config["coupling"]["one_way"] is False and config["aperture_law"]["residual_aperture"] == 7.53e-6
     # B3's defaults (decisions #55): the skeleton's Newton step, no pocket step
