@@ -40,11 +40,17 @@ VARIANTS = {  # label -> (build_radial_scenario keywords, CouplingSetup fields)
 }
 
 
-def run(label: str, t_max: float | None) -> str:
+def variant_scenario(case: str, label: str):
+    """The paper-size scenario of ``case`` with the port variant ``label`` of :data:`VARIANTS`."""
     scenario_keywords, coupling_fields = VARIANTS[label]
-    sc = build_radial_scenario(RADIAL_CASES["B3"], **scenario_keywords)
+    sc = build_radial_scenario(RADIAL_CASES[case], **scenario_keywords)
     for field, value in coupling_fields.items():
         setattr(sc.coupling, field, value)
+    return sc
+
+
+def run(label: str, t_max: float | None) -> str:
+    sc = variant_scenario("B3", label)
     if t_max is not None:
         sc.setup.t_max = t_max
     model = CoupledFlowModel(sc.net, sc.setup, start_grains(sc), sc.coupling)

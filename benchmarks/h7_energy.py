@@ -20,19 +20,16 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from b3_port import VARIANTS  # noqa: E402
+from b3_port import VARIANTS, variant_scenario  # noqa: E402
 from hmdem.coupling.micromechanics import energy_partition  # noqa: E402
 from hmdem.coupling.model import CoupledFlowModel  # noqa: E402
-from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, start_grains  # noqa: E402
+from hmdem.coupling.radial import start_grains  # noqa: E402
 
 KPA, UJ = 1e3, 1e-6
 
 
 def run(case: str, label: str, t_max: float) -> str:
-    scenario_keywords, coupling_fields = VARIANTS[label]
-    sc = build_radial_scenario(RADIAL_CASES[case], **scenario_keywords)
-    for field, value in coupling_fields.items():
-        setattr(sc.coupling, field, value)
+    sc = variant_scenario(case, label)
     sc.setup.t_max = t_max
     model = CoupledFlowModel(sc.net, sc.setup, start_grains(sc), sc.coupling)
     state, rec = model.run()
