@@ -10,7 +10,7 @@ dE_f 134.7 uJ, contacts of 0.47 and 0.79 N open). This runs paper-size A3 and B3
 opened contact, with the port variants of ``b3_port.py`` (free: the default), and prints per run
 the first step's and the onset step's figures (``summary.json``'s ``first_step_*`` and
 ``fracture_onset_*``) and the contact forces, after settling, of the contacts that opened in the
-onset step. 10-40 s a run on one core.
+onset step. 5-15 s a run on one core (A3 with its port held, to 13 us: ~15 s).
 """
 import argparse
 import sys
@@ -39,7 +39,8 @@ def run(case: str, label: str, t_max: float) -> str:
     first_forces = np.sort(model.initial_force[opened_time == onset]) if np.isfinite(onset) else np.array([])
     return (f"| {case} {label} | {e['first_step_injection_pressure_pa'] / KPA:.3g} kPa, "
             f"{e['first_step_injection_energy_j'] / UJ:.3g} uJ, {100 * e['first_step_dissipated_fraction']:.1f} % | "
-            f"{onset * 1e6:.3g} us | {e['fracture_onset_injection_pressure_pa'] / KPA:.4g} kPa | "
+            f"{onset * 1e6:.3g} us | {e['fracture_onset_step_s']:.2g} s | "
+            f"{e['fracture_onset_injection_pressure_pa'] / KPA:.4g} kPa | "
             f"{e['fracture_onset_injection_energy_j'] / UJ:.4g} uJ | {e['fracture_onset_residual_energy_j'] / UJ:.3g} uJ | "
             f"{100 * e['fracture_onset_dissipated_fraction']:.1f} % | {len(first_forces)}: "
             f"{' '.join(f'{f:.2g}' for f in first_forces[:6])}{' ...' if len(first_forces) > 6 else ''} |")
@@ -51,9 +52,9 @@ def main() -> None:
     parser.add_argument("--variants", nargs="+", choices=tuple(VARIANTS), default=["free", "rho10", "rho100", "fixed"])
     parser.add_argument("--t-max", type=float, default=2e-5, help="stop here [s] (A3's held port opens at 13 us)")
     args = parser.parse_args()
-    print("| run | first step: p_in, dE_in, dissipated | first opening | its step: p_in | dE_in | dE_f | dissipated | "
-          "contacts opened in it: forces after settling [N], weakest first |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| run | first step: p_in, dE_in, dissipated | first opening | its step: length | p_in | dE_in | dE_f | "
+          "dissipated | contacts opened in it: forces after settling [N per m], weakest first |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for case in args.cases:
         for label in args.variants:
             print(run(case, label, args.t_max), flush=True)

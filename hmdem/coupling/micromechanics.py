@@ -110,11 +110,11 @@ def chronology_counts(masks: dict, opened: np.ndarray, opened_time: np.ndarray) 
     }
 
 
-STEP_ENERGY_KEYS = ("time_s", "injection_pressure_pa", "injection_energy_j", "residual_energy_j",
+STEP_ENERGY_KEYS = ("time_s", "step_s", "injection_pressure_pa", "injection_energy_j", "residual_energy_j",
                     "dissipated_fraction")
 
 
-def energy_partition(times: np.ndarray, injection_pressure: np.ndarray, injected: np.ndarray,
+def energy_partition(times: np.ndarray, steps: np.ndarray, injection_pressure: np.ndarray, injected: np.ndarray,
                      dissipated: np.ndarray, onset_time: float) -> dict:
     """Summary keys for the per-step energy partition of seed 004 Figs. 15-16 (Eqs. 25-26;
     digest H7): the injection energy dE_in = p_in Q dt of one step, the residual energy
@@ -123,8 +123,10 @@ def energy_partition(times: np.ndarray, injection_pressure: np.ndarray, injected
     ``first_step_*``, the first step, with the port still holding air (A3: 5.1 kPa, 2.5 uJ,
     28 % dissipated); ``fracture_onset_*``, the step at whose end the first contact counted as
     opened (``onset_time``; A3: 393.4 kPa, 194.5 uJ, 86 %, dE_f 27.4 uJ; B3: 4076.1 kPa,
-    dE_f 134.7 uJ). Per recorded step: ``times`` (its end), ``injection_pressure``,
-    ``injected`` and ``dissipated`` [J per m of depth]; nan where there is no such step."""
+    dE_f 134.7 uJ). The paper's are full 8e-7 s steps; ``*_step_s`` says how long ours was.
+    Per recorded step: ``times`` (its end), ``steps`` (its length), ``injection_pressure``,
+    ``injected`` and ``dissipated`` [J per m of depth]. nan (null in summary.json) where there
+    is no such step."""
     t, nan = np.asarray(times, float), float("nan")
     later = np.flatnonzero(t >= onset_time) if np.isfinite(onset_time) else []
     keys = {}
@@ -132,6 +134,7 @@ def energy_partition(times: np.ndarray, injection_pressure: np.ndarray, injected
         values = (nan,) * len(STEP_ENERGY_KEYS)
         if k is not None:
             e_in, e_v = float(injected[k]), float(dissipated[k])
-            values = (float(t[k]), float(injection_pressure[k]), e_in, e_in - e_v, e_v / e_in if e_in > 0 else nan)
+            values = (float(t[k]), float(steps[k]), float(injection_pressure[k]), e_in, e_in - e_v,
+                      e_v / e_in if e_in > 0 else nan)
         keys |= {f"{name}_{key}": value for key, value in zip(STEP_ENERGY_KEYS, values)}
     return keys
