@@ -34,9 +34,9 @@ def run(case: str, label: str, t_max: float) -> str:
     model = CoupledFlowModel(sc.net, sc.setup, start_grains(sc), sc.coupling)
     state, rec = model.run()
     opened_time = np.where(model.opened, model.opened_time, np.inf)
-    onset = float(opened_time.min())
+    onset = float(opened_time.min())  # the summary's first_opening_time_s
     e = energy_partition(*rec.step_energies(), onset)
-    first_forces = np.sort(model.initial_force[opened_time == onset]) if np.isfinite(onset) else np.array([])
+    first_forces = np.sort(model.initial_force[opened_time == onset])  # empty when none opened
     return (f"| {case} {label} | {e['first_step_injection_pressure_pa'] / KPA:.3g} kPa, "
             f"{e['first_step_injection_energy_j'] / UJ:.3g} uJ, {100 * e['first_step_dissipated_fraction']:.1f} % | "
             f"{onset * 1e6:.3g} us | {e['fracture_onset_step_s']:.2g} s | "

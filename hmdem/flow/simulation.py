@@ -73,18 +73,24 @@ class RunRecord:
     wall_time: float = 0.0
     wall_start: float = field(default_factory=time.perf_counter, repr=False, compare=False)
 
+    def series(self, *names: str) -> list[np.ndarray]:
+        """The named columns of the recorded steps (:attr:`columns`, timeseries.csv's header) as
+        float arrays, one row per accepted step from t = 0."""
+        index = [self.columns.index(name) for name in names]
+        rows = np.array([[r[i] for i in index] for r in self.rows], float).reshape(-1, len(index))
+        return list(rows.T)
+
     def injection_pressure(self) -> tuple[np.ndarray, np.ndarray]:
         """(t, mean injection pressure) of the recorded steps (timeseries.csv's t, p_in_mean)."""
-        return np.array([r[0] for r in self.rows], float), np.array([r[2] for r in self.rows], float)
+        t, p = self.series("t", "p_in_mean")
+        return t, p
 
     def step_energies(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(t, dt, p_in, dE_in, dE_v) of the recorded steps (one row per accepted step, from
-        t = 0): the injection energy p_in Q dt (Eq. 25) and the viscous dissipation
-        sum_k q_k (p_i - p_j) dt (Eq. 26) of each step, the differences of timeseries.csv's
-        cumulative energy and dissipation columns."""
-        rows = np.array([(r[0], r[1], r[2], r[6], r[7]) for r in self.rows], float).reshape(-1, 5)
-        return (rows[:, 0], rows[:, 1], rows[:, 2], np.diff(rows[:, 3], prepend=0.0),
-                np.diff(rows[:, 4], prepend=0.0))
+        """(t, dt, p_in, dE_in, dE_v) of the recorded steps: the injection energy p_in Q dt
+        (Eq. 25) and the viscous dissipation sum_k q_k (p_i - p_j) dt (Eq. 26) of each step, the
+        differences of the cumulative energy and dissipation columns."""
+        t, dt, p, energy, dissipation = self.series("t", "dt", "p_in_mean", "energy", "dissipation")
+        return t, dt, p, np.diff(energy, prepend=0.0), np.diff(dissipation, prepend=0.0)
 
     def run_mass_balance_error(self, rate: float, t: float) -> float:
         """|stored + outflow - injected| / injected over the whole run (all steps' defects and
