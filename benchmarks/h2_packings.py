@@ -1,0 +1,100 @@
+"""H1, H2 and H6 over packing realisations and sample sizes (issue 3; decisions #70).
+
+    .venv/bin/python benchmarks/h2_packings.py [--discs 150 300 600] [--seeds 1 2 3] [--jobs 2]
+
+H2 compares A3's early peak with A1's maximum (paper 0.86 MPa / 0.13 MPa = 6.6, bound [4, 10];
+decisions #51), H6 their breakthrough times (20 +- 5) and H1 asks A1 to open no contact. The
+tests read them on one packing per size: the CI sample (150 discs, 0.41 mm, seed 1) and the
+shipped paper-size one (1,395 discs, seed 0). This compacts a fresh sample per (discs, seed),
+side 0.41 mm x sqrt(discs / 150) so that every size has the paper's grain density (1.25 mm for
+1,395 discs, as `python -m hmdem.dem.compaction` makes it), runs A3 and
+A1 on it to breakthrough with the default coupling, and prints one table row per sample.
+1,395 discs with seed 0 loads the shipped packing instead of compacting it again. Wall time per
+sample on one core: ~10 s at 150 discs, ~40 s at 300, ~3 min at 600, ~25 min at 1,395.
+"""
+import argparse
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+PAPER_DISCS, CI_SIDE, CI_DISCS = 1395, 0.41e-3, 150
+
+
+def nominal_side(discs: int) -> float:
+    """The CI sample's side scaled to the paper's grain density; 1.25 mm at the paper's size, as
+    ``python -m hmdem.dem.compaction`` makes it (so seed N here is that command's --seed N)."""
+    return 1.25e-3 if discs == PAPER_DISCS else CI_SIDE * np.sqrt(discs / CI_DISCS)
+
+
+def sample(discs: int, seed: int):
+    """The shipped packing for the paper's size and seed 0, else a fresh compaction."""
+    from hmdem.coupling.radial import default_huang_packing_path
+    from hmdem.dem.compaction import compact_sample
+    from hmdem.network.packing import DiscPacking
+
+    if discs == PAPER_DISCS and seed == 0:
+        return DiscPacking.load(default_huang_packing_path())
+    return compact_sample(n=discs, size=nominal_side(discs), seed=seed)
+
+
+def run(discs: int, seed: int) -> str:
+    from hmdem.coupling.model import CoupledFlowModel
+    from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, start_grains
+    from hmdem.flow.diagnostics import early_peak
+
+    start = time.time()
+    pk = sample(discs, seed)
+    runs = {}
+    for case in ("A3", "A1"):
+        sc = build_radial_scenario(RADIAL_CASES[case], packing=pk)
+        model = CoupledFlowModel(sc.net, sc.setup, start_grains(sc), sc.coupling)
+        state, rec = model.run()
+        runs[case] = (state.t, rec, int(model.opened.sum()), rec.status)
+    a3_peak = early_peak(*runs["A3"][1].injection_pressure())
+    a1_max = runs["A1"][1].peak_injection_pressure
+    status = "" if runs["A3"][3] == runs["A1"][3] == "breakthrough" else f" ({runs['A3'][3]}, {runs['A1'][3]})"
+    return (f"| {discs} | {pk.box[0] * 1e3:.2f} | {seed} | {a3_peak.pressure / 1e3:.0f} at {a3_peak.time * 1e6:.3g} us"
+            f"{'' if a3_peak.fell else ', never fell'} | {a1_max / 1e3:.1f} | {a3_peak.pressure / a1_max:.2f} | "
+            f"{runs['A1'][0] / runs['A3'][0]:.1f} | {runs['A1'][2]} | {runs['A3'][2]} | "
+            f"{time.time() - start:.0f}{status} |")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--discs", nargs="+", type=int, default=[150, 300, 600],
+                        help="sample sizes in discs (1395: the paper's)")
+    parser.add_argument("--seeds", nargs="+", type=int, default=[1, 2, 3, 4, 5], help="packing seeds")
+    parser.add_argument("--jobs", type=int, default=1, help="samples run side by side (one core each)")
+    parser.add_argument("--one", nargs=2, type=int, metavar=("DISCS", "SEED"), help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.one:  # a worker: one sample, its row on stdout
+        print(run(*args.one), flush=True)
+        return
+    if min(args.discs) < 50 or args.jobs < 1:
+        parser.error("--discs must be at least 50 and --jobs at least 1")
+    print("| discs | side [mm] | seed | A3 early peak [kPa] | A1 max [kPa] | H2 ratio | H6 t_A1/t_A3 | "
+          "A1 opened | A3 opened | wall [s] |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    samples = [(d, s) for d in args.discs for s in args.seeds]
+    with ThreadPoolExecutor(args.jobs) as pool:  # one process per sample: YADE is one scene a process
+        for row in pool.map(worker, samples):
+            print(row, flush=True)
+
+
+def worker(sample_key: tuple[int, int]) -> str:
+    discs, seed = sample_key
+    done = subprocess.run([sys.executable, __file__, "--one", str(discs), str(seed)],
+                          capture_output=True, text=True)
+    if done.returncode:
+        return f"| {discs} | | {seed} | failed: {done.stderr.strip().splitlines()[-1]} |"
+    return done.stdout.strip().splitlines()[-1]
+
+
+if __name__ == "__main__":
+    main()
