@@ -76,8 +76,8 @@ def main() -> None:
     if args.one:  # a worker: one sample, its row on stdout
         print(run(*args.one), flush=True)
         return
-    if min(args.discs) < 50 or args.jobs < 1:
-        parser.error("--discs must be at least 50 and --jobs at least 1")
+    if min(args.discs) < 50 or min(args.seeds) < 0 or args.jobs < 1:
+        parser.error("--discs must be at least 50, --seeds non-negative and --jobs at least 1")
     print("| discs | side [mm] | seed | A3 early peak [kPa] | A1 max [kPa] | H2 ratio | H6 t_A1/t_A3 | "
           "A1 opened | A3 opened | wall [s] |")
     print("|---|---|---|---|---|---|---|---|---|---|")
