@@ -52,18 +52,19 @@ def run(discs: int, seed: int) -> str:
 
     start = time.time()
     pk = sample(discs, seed)
-    runs = {}
+    end_time, record, opened = {}, {}, {}
     for case in ("A3", "A1"):
         sc = build_radial_scenario(RADIAL_CASES[case], packing=pk)
         model = CoupledFlowModel(sc.net, sc.setup, start_grains(sc), sc.coupling)
-        state, rec = model.run()
-        runs[case] = (state.t, rec, int(model.opened.sum()), rec.status)
-    a3_peak = early_peak(*runs["A3"][1].injection_pressure())
-    a1_max = runs["A1"][1].peak_injection_pressure
-    status = "" if runs["A3"][3] == runs["A1"][3] == "breakthrough" else f" (A3 {runs['A3'][3]}, A1 {runs['A1'][3]})"
+        state, record[case] = model.run()
+        end_time[case], opened[case] = state.t, int(model.opened.sum())
+    a3_peak = early_peak(*record["A3"].injection_pressure())
+    a1_max = record["A1"].peak_injection_pressure
+    short = {case: rec.status for case, rec in record.items() if rec.status != "breakthrough"}
+    status = "".join(f" ({case} {s})" for case, s in short.items())
     return (f"| {discs} | {pk.box[0] * 1e3:.2f} | {seed} | {a3_peak.pressure / 1e3:.0f} at {a3_peak.time * 1e6:.3g} us"
             f"{'' if a3_peak.fell else ', never fell'} | {a1_max / 1e3:.1f} | {a3_peak.pressure / a1_max:.2f} | "
-            f"{runs['A1'][0] / runs['A3'][0]:.1f}{status} | {runs['A1'][2]} | {runs['A3'][2]} | "
+            f"{end_time['A1'] / end_time['A3']:.1f}{status} | {opened['A1']} | {opened['A3']} | "
             f"{time.time() - start:.0f} |")
 
 

@@ -337,13 +337,14 @@ def test_a3_injection_rate_reproduces_the_energies_of_fig_15():
     # decisions #69: Fig. 15's energies are one step's, dE_in = p_in Q dt (Eq. 25) at A3's
     # dt = 8e-7 s: 2.5 uJ at 5.1 kPa (15a) and 194.5 uJ at 393.4 kPa (15b) give Q dt = 4.90e-10
     # and 4.944e-10 m^3 per m. Sigma = 0.2 L (decisions #21, chosen from A1's pressure and time
-    # before this was read) must reproduce each: 15a to its printed two digits (~3 %), 15b
-    # to 2 %, twice the 0.9 % by which the paper's two readings differ from each other
+    # before this was read) must reproduce each to 2 %: twice the 0.9 % by which the paper's two
+    # readings differ from each other, and inside the ~3 % that 15a's two printed digits allow
+    # (measured: 0.02 % and 0.8 %)
     from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario
 
     sc = build_radial_scenario(RADIAL_CASES["A3"])
     volume_per_step = sc.setup.rate * RADIAL_CASES["A3"].dt
-    assert volume_per_step == pytest.approx(2.5e-6 / 5.1e3, rel=0.03)
+    assert volume_per_step == pytest.approx(2.5e-6 / 5.1e3, rel=0.02)
     assert volume_per_step == pytest.approx(194.5e-6 / 393.4e3, rel=0.02)
 
 
