@@ -33,12 +33,14 @@ from hmdem.cli import local_damping, non_negative_int, positive_int  # noqa: E40
 from hmdem.coupling.quasi_newton import InterfaceQuasiNewton  # noqa: E402
 from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, start_grains  # noqa: E402
 from hmdem.dem.assembly import DiscAssembly  # noqa: E402
+from hmdem.network.packing import DiscPacking  # noqa: E402
 
 GRAIN_FIELDS = ("radii", "ids", "fixed", "k_n", "k_s", "friction", "_index")
 
 
-def save(case: str, until: float, checkpoint: Path) -> None:
-    sc = build_radial_scenario(RADIAL_CASES[case])
+def save(case: str, until: float, checkpoint: Path, packing: Path | None = None) -> None:
+    packed = DiscPacking.load(packing) if packing else None
+    sc = build_radial_scenario(RADIAL_CASES[case], packing=packed)
     grains = start_grains(sc)
     model = CoupledFlowModel(sc.net, sc.setup, grains, sc.coupling)
     sc.setup.t_max = until
@@ -187,6 +189,7 @@ def main() -> None:
     s.add_argument("--case", choices=sorted(RADIAL_CASES), default="A1")
     s.add_argument("--until", type=float, required=True, help="simulated time of the checkpoint [s]")
     s.add_argument("--checkpoint", type=Path, required=True)
+    s.add_argument("--packing", type=Path, help="packing .npz (python -m hmdem.dem.compaction; default: the shipped one)")
     g = sub.add_parser("log")
     g.add_argument("--checkpoint", type=Path, required=True)
     g.add_argument("--steps", type=int, default=200)
@@ -215,7 +218,7 @@ def main() -> None:
     b.add_argument("--dem-cycles", type=positive_int, help="DEM cycles per flow step (default: the stable DEM step)")
     args = parser.parse_args()
     if args.command == "save":
-        save(args.case, args.until, args.checkpoint)
+        save(args.case, args.until, args.checkpoint, args.packing)
     elif args.command == "log":
         log(args.checkpoint, args.steps, args.csv, args.pocket_newton, args.pv_reuse_steps, args.pv_max_iter,
             args.pv_tol, args.dt, args.span, args.skeleton_newton, args.pv_max_columns, args.damping)

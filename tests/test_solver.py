@@ -98,6 +98,28 @@ def test_u9_eq19_opens_blocked_pipe():
             assert margin > 0 and fill[1] > 0
 
 
+def test_pipe_within_the_threshold_tolerance_is_left_to_the_active_set():
+    # decisions #71: where pressures are only known to a tolerance (the coupled P-V iteration), a
+    # front pipe shut by less than it is at its threshold: no Eq. 19 step is cut for it. Shut by
+    # more, the U9 step is taken as before.
+    class Tolerant(FlowModel):
+        def threshold_tolerance(self, state):
+            return 10.0  # Pa
+
+    net = chain_network(3)
+    for deficit, expect_eq19 in ((5.0, False), (20.0, True)):
+        model = Tolerant(net, FlowSetup(AIR_OIL, rate=1e-7, dt=100.0))
+        state = model.initial_state()
+        state.invaded[0] = True
+        state.saturation[0] = 1.0
+        g, orient, pc = model.pipe_properties(state)
+        state.pressure[0] = -pc[orient != 0][0] - deficit  # p_0 - p_1 + p_c = -deficit
+        sol, fill, dt, limiter = model.implicit_step(state, orient != 0)
+        assert (limiter == "eq19") == expect_eq19
+        if not expect_eq19:  # the active set opened it within the nominal step, and it fills
+            assert not sol.blocked[orient != 0][0] and fill[1] > 0 and dt > 1.0
+
+
 def test_u10_overfill_refinement_fills_exactly_one_domain():
     # seed004 U10: after the Eq. 18 refinement, max S = 1 in the target and no other domain > 1 (1e-6)
     sc = build_scenario(CASES["vf"])

@@ -212,6 +212,12 @@ class FlowModel:
         """Longest step the implicit scheme may take: the nominal dt (a coupling may lower it)."""
         return self.setup.dt
 
+    def threshold_tolerance(self, state: FlowState) -> float:
+        """Pressure within which a front pipe's p_u - p_d + p_c counts as at its threshold rather
+        than shut: 0 here, where each step's pressures are exact solves (a coupling whose
+        pressures are only known to an iteration tolerance returns that tolerance)."""
+        return 0.0
+
     def implicit_step(self, state: FlowState, blocked_guess: np.ndarray):
         g, orient, pc = self.pipe_properties(state)
         dt = min(self.step_cap(), self.setup.t_max - state.t)
@@ -220,7 +226,8 @@ class FlowModel:
         solved = None
         if self.setup.two_phase and front.any():
             m0 = self._margins(state.pressure, orient, pc)
-            shut = front & (m0 <= 0.0)
+            # a pipe within the pressures' tolerance of its threshold is left to the active set
+            shut = front & (m0 <= min(0.0, -self.threshold_tolerance(state)))
             if shut.any():
                 # Eq. 19, generalised: with the pipes shut at p^n held shut, find the step at
                 # which the first of them opens, so that pipe openings, like domain fillings
