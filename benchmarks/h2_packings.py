@@ -12,7 +12,7 @@ A1 on it to breakthrough with the default coupling, and prints one table row per
 that stops short of breakthrough says so in its row (its H6 ratio is then of the times reached).
 1,395 discs with seed 0 loads the shipped packing instead of compacting it again. Wall time per
 sample on one core: ~10 s at 150 discs, ~40 s at 300, ~3 min at 600; at 1,395 A3 takes ~4 min
-and A1 16-49 min (its Eq. 19 steps vary with the packing; BENCHMARKS.md).
+and A1 14-28 min (its P-V halvings vary with the packing; BENCHMARKS.md).
 """
 import argparse
 import subprocess

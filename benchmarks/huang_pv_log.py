@@ -189,7 +189,7 @@ def main() -> None:
     s.add_argument("--case", choices=sorted(RADIAL_CASES), default="A1")
     s.add_argument("--until", type=float, required=True, help="simulated time of the checkpoint [s]")
     s.add_argument("--checkpoint", type=Path, required=True)
-    s.add_argument("--packing", type=Path, help="packing .npz (python -m hmdem.dem.compaction; default: the shipped one)")
+    s.add_argument("--packing", type=Path, help="packing .npz (hmdem.dem.compaction; default: the shipped one)")
     g = sub.add_parser("log")
     g.add_argument("--checkpoint", type=Path, required=True)
     g.add_argument("--steps", type=int, default=200)

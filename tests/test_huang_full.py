@@ -3,7 +3,7 @@
 Each case runs once per session, through the same command a user types
 (``python -m hmdem.hele_shaw radial --case X``), to breakthrough; the assertions read the run
 directory. Wall times on 2-core machines are in BENCHMARKS.md; with the P-V iteration on the
-numba replica (decisions #65), two runs at a time: A1 17 min, A3 6, B3 3.4, B1 26; B3 one-way
+numba replica (decisions #65, #71), two runs at a time: A1 14 min, A3 4, B3 3, B1 23; B3 one-way
 under a minute; A3 and B3 again at half the flow step. Iterating in YADE they took 19-65, 5-22,
 7-33 and 49-60 min (decisions #45, #55, #56). Tolerances are the digest's
 (§13.3); where the model misses a claim the test is a strict expected failure that names the
@@ -68,7 +68,7 @@ def test_a1_infiltration_with_monotonic_pressure_and_circular_front(huang):
     assert s["fractal_dimension"] >= 1.90  # H1: circular front
 
 
-@pytest.mark.xfail(strict=True, reason="known model discrepancy, issue 3 open: at paper size A1 opens 5-6 "
+@pytest.mark.xfail(strict=True, reason="known model discrepancy, issue 3 open: at paper size A1 opens 4-6 "
                    "contacts by breakthrough (t = 0.0343 s, 2-3 still open at the end; BENCHMARKS.md), the "
                    "paper none; they separate 0.07-0.25 um, 1-4x the opening gap (the mean contact overlap, "
                    "0.06 um), all six carried < 0.13 N after settling (the weakest 1.5 % of contacts; mean 4.5 N), "
@@ -116,7 +116,7 @@ def test_b1_infiltration_dominated_with_fractures_inside_the_infiltrated_zone(hu
     # front stays circular (qualitative in the digest). Read as for A1 and A3: the regime, a
     # mass-radius D_f >= 1.90 (H1's bound for a circular front) and most opened contacts with
     # both pores filled at breakthrough (measured 2026-11-25: 399 of 454, D_f 1.998, in 49 min;
-    # 2026-11-27 on the replica: 409 of 464, D_f 1.998, in 26 min)
+    # 2026-11-27 on the replica: 409 of 464, D_f 1.998, in 26 min; with decisions #71 402 of 456)
     s = huang("B1")[0]
     assert s["status"] == "breakthrough"
     assert s["regime"] == "infiltration-dominated with fracturing"
