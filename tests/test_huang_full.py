@@ -217,7 +217,8 @@ def test_energy_partition_of_figs_15_and_16(huang):
 def test_halved_flow_step_keeps_regime_and_opened_contacts(huang, case):
     # issue 3 acceptance: halving the flow step leaves the regime and the opened-contact count
     # within 15 % (the reduced A3 is checked in make test). Measured 2026-11-26 at paper size:
-    # A3 345 and 344 opened at 8e-7 and 4e-7 s, B3 841 and 840, each in its regime (BENCHMARKS.md)
+    # A3 345 and 344 opened at 8e-7 and 4e-7 s, B3 841 and 840, each in its regime; 2026-11-28,
+    # with decisions #71: A3 346 and 345, B3 831 and 858 (BENCHMARKS.md)
     from hmdem.coupling.radial import RADIAL_CASES
 
     full = huang(case)[0]
