@@ -76,17 +76,23 @@ def test_u8_mass_balance_air_oil(vf_run, cf1_run):
         _assert_mass_balance(sc, state, rec)
 
 
+def invaded_inlet(model):
+    """The chain's inlet domain invaded behind its capillary-blocked pipe to domain 1: the
+    initial state, with the front orientation and entry pressures of its pipes."""
+    state = model.initial_state()
+    state.invaded[0] = True
+    state.saturation[0] = 1.0
+    _, orient, pc = model.pipe_properties(state)
+    return state, orient, pc
+
+
 def test_u9_eq19_opens_blocked_pipe():
     # seed004 U9: an invaded inlet domain behind a capillary-blocked pipe. The Eq. 19 step with
     # chi = 1.005 takes p_i - p_j + p_c from < 0 to >= 0; with chi = 1 it lands on 0 (1e-9).
     net = chain_network(3)
     for chi, expect_open in ((1.0, None), (1.005, True)):
-        setup = FlowSetup(AIR_OIL, rate=1e-7, dt=100.0, chi=chi)
-        model = FlowModel(net, setup)
-        state = model.initial_state()
-        state.invaded[0] = True
-        state.saturation[0] = 1.0
-        g, orient, pc = model.pipe_properties(state)
+        model = FlowModel(net, FlowSetup(AIR_OIL, rate=1e-7, dt=100.0, chi=chi))
+        state, orient, pc = invaded_inlet(model)
         m0 = model._margins(state.pressure, orient, pc)[orient != 0]
         assert np.all(m0 < 0)
         sol, fill, dt, limiter = model.implicit_step(state, orient != 0)
@@ -109,10 +115,7 @@ def test_pipe_within_the_threshold_tolerance_is_left_to_the_active_set():
     net = chain_network(3)
     for deficit, expect_eq19 in ((5.0, False), (20.0, True)):
         model = Tolerant(net, FlowSetup(AIR_OIL, rate=1e-7, dt=100.0))
-        state = model.initial_state()
-        state.invaded[0] = True
-        state.saturation[0] = 1.0
-        g, orient, pc = model.pipe_properties(state)
+        state, orient, pc = invaded_inlet(model)
         state.pressure[0] = -pc[orient != 0][0] - deficit  # p_0 - p_1 + p_c = -deficit
         sol, fill, dt, limiter = model.implicit_step(state, orient != 0)
         assert (limiter == "eq19") == expect_eq19

@@ -385,10 +385,12 @@ class CoupledFlowModel(FlowModel):
         closer, so a front pipe shut by less is at its threshold, and an Eq. 19 step cut for it
         would resolve the iteration's noise (decisions #71). The one-way variant solves each step
         once, exactly, and keeps 0."""
+        return 0.0 if self.coupling.one_way else self._pv_tolerance(state.pressure)
+
+    def _pv_tolerance(self, pressure: np.ndarray) -> float:
+        """The P-V test's bound on |p_calc - p_trial| (decisions #18): relative to max |p|, with a floor."""
         c = self.coupling
-        if c.one_way:
-            return 0.0
-        return c.pv_rtol * float(np.abs(state.pressure).max()) + c.pv_atol
+        return c.pv_rtol * float(np.abs(pressure).max()) + c.pv_atol
 
     def _trial(self, state, dt, g, orient, pc, blocked, hold=False):
         if self._predicting:
@@ -441,7 +443,7 @@ class CoupledFlowModel(FlowModel):
                                          f"(step {self.record.steps + 1}, iteration {iteration}): pressure "
                                          f"mismatch {mismatch.max():.3g} Pa")
             sol = calc
-            tolerance = c.pv_rtol * np.abs(calc.pressure).max() + c.pv_atol
+            tolerance = self._pv_tolerance(calc.pressure)
             if self.pv_log is not None:
                 worst = int(np.argmax(mismatch))
                 self.pv_log.append(PVEvaluation(state.t, dt, iteration, float(mismatch[worst] / tolerance), worst,
