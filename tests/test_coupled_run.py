@@ -275,7 +275,8 @@ def test_reduced_a1_opens_no_contact_and_its_pressure_rises(reduced_runs):
     assert rec.status == "breakthrough"
     # H1: pure infiltration. The 0 is this packing's: one of four other packings of this size opens
     # 3 contacts, one of five at 300 and at 600 discs opens 1 and 3, and the paper-size packings
-    # open 4-6 (shipped), 1 and 4 (strict xfail there; benchmarks/h2_packings.py, decisions #70, #71)
+    # open 4-6 (shipped), 1 and 4 (strict xfail there; benchmarks/h2_packings.py, decisions #70, #71),
+    # by capillary suction on their weakest contacts (benchmarks/a1_openings.py, decisions #72)
     assert model.opened.sum() == 0
     # H1: monotonic rise, read as the paper's Fig. 14 shows it: at ten equally spaced times the
     # injection pressure never falls (single steps dip when a pore fills and its meniscus jumps)
