@@ -27,6 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from hmdem.coupling.model import CoupledFlowModel  # noqa: E402
 from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, start_grains  # noqa: E402
 from hmdem.flow.grain_forces import pressure_force_matrix  # noqa: E402
+from hmdem.network.network import pipes_touching  # noqa: E402
 from hmdem.network.packing import DiscPacking  # noqa: E402
 
 
@@ -83,11 +84,11 @@ def main() -> None:
         g0, g1 = net.pipe_grains[pipe]
         normal = pk.centres[g1] - pk.centres[g0]
         normal /= np.linalg.norm(normal)
-        around = np.unique(net.pipe_domains[(net.pipe_grains == g0).any(axis=1) | (net.pipe_grains == g1).any(axis=1)])
+        around = np.unique(net.pipe_domains[pipes_touching(net.pipe_grains, (g0, g1))])
         around = around[around >= 0]
         t, p_before, p_at, s_at = log.events[int(pipe)]
-        separating = [((forces @ p).reshape(-1, 2)[[g0, g1]] * [[-1.0], [1.0]]).sum(axis=0) @ normal
-                      for p in (p_before, p_at)]
+        on_grains = [(forces @ p).reshape(-1, 2) for p in (p_before, p_at)]
+        separating = [(f[g1] - f[g0]) @ normal for f in on_grains]
         wet = bool((s_at[around] > 0).any())
         fall = float((p_before[around] - p_at[around]).max())
         force = model.initial_force[pipe]
