@@ -165,8 +165,9 @@ def test_b3_fractures_conduct_far_better_than_their_sides(huang):
 @pytest.mark.xfail(strict=True, reason="known model discrepancy, issue 3 open: B3 has an early peak (3.5 MPa at "
                    "1.6 us, down to 2.2 MPa by 0.1 ms) but then rises to breakthrough (2.9-3.2 -> 5.4-7.7 MPa "
                    "on a 10-point grid) as the viscous invaded zone grows; the paper peaks at 9.7 MPa and plateaus. "
-                   "100x heavier grains give an 11.9 MPa peak and still rise 1.47x over the last 80 % of the run; "
-                   "only held port grains are flat, at 32-35 MPa (BENCHMARKS.md, decisions #68)")
+                   "100x heavier grains give an 11.9 MPa peak and still rise 1.47x over the last 80 % of the run, and "
+                   "so does compaction --seed 2's packing, whose early peak is the paper's (9.65 MPa; 2.4 -> 6.5 MPa "
+                   "on the grid); only held port grains are flat, at 32-35 MPa (BENCHMARKS.md, decisions #68)")
 def test_b3_early_peak_then_decline(huang):
     p = pressure_on_grid(huang("B3")[1])
     # H4: early peak, then decline to a plateau: the peak in the first half of the run and the
@@ -175,9 +176,10 @@ def test_b3_early_peak_then_decline(huang):
     assert p[-1] < 0.8 * p.max()
 
 
-@pytest.mark.xfail(strict=True, reason="known model discrepancy, issue 3 open: both B3 curves fall alike, 3-6 "
-                   "(two-way, three runs) and 7-9 (one-way, two runs) falls of > 2 % on a 200-point grid, many "
-                   "of them the decline after the early peak; neither shows the paper's one-way sudden drops "
+@pytest.mark.xfail(strict=True, reason="known model discrepancy, issue 3 open: the two-way B3 curve is not free "
+                   "of drops: 3-6 falls of > 2 % on a 200-point grid, about half of them in the decline after the "
+                   "early peak, and single steps falling 3-42 % of the running peak (three packings, two steps). The "
+                   "one-way variant does fall harder, as the paper says: 7-16 grid falls, single steps of 14-68 % "
                    "(BENCHMARKS.md). --one-way-volume lagged swings and collapses at water's K instead, and is smooth "
                    "at Zhang's 0.75 MPa (decisions #66)")
 def test_b3_two_way_smooth_where_one_way_drops(huang):
