@@ -6,7 +6,7 @@ Run the directories first, e.g. ``python -m hmdem.hele_shaw radial --case B3 [--
 [--packing P.npz] [--dt 4e-7] --out RUN_DIR``. Prints one table row per directory: coupling,
 the command's packing and flow step, steps, breakthrough time, the largest fall of p_in in one
 accepted step (as a fraction of its running peak) and when, the "dips" (a step falling by more
-than 2 % or 5 % of the running peak whose next step rises by as much again: the seed's
+than 2 % or 5 % of the running peak whose next step rises by more than the same fraction: the seed's
 "pressure fluctuations (sudden drops)", which the steady decline after the early peak that H4 asks
 for does not count) and H10's own count of falls on its 200-point grid (``one_way_variants.falls``,
 as tests/test_huang_full.py counts them). Takes a second.
@@ -20,11 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
+# a sibling script: importable when this file is run as a script (its folder leads sys.path)
 from one_way_variants import falls
 
 
 def dips(t: np.ndarray, p: np.ndarray, fraction: float) -> np.ndarray:
-    """Times of steps that fall by more than ``fraction`` of the running peak and rise as much next step."""
+    """Times of steps that fall by more than ``fraction`` of the running peak, the next step rising by more."""
     peak = np.maximum.accumulate(p)[1:-1]
     fall, rise = (p[:-2] - p[1:-1]) / peak, (p[2:] - p[1:-1]) / peak
     return t[1:-1][(fall > fraction) & (rise > fraction)]
