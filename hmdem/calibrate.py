@@ -22,8 +22,9 @@ import time
 from pathlib import Path
 
 from . import __version__
-from .cli import (InputError, OneLineParser, int_at_least, new_run_directory, non_negative_int, number_in,
-                  positive_number)
+from .cli import (InputError, OneLineParser, int_at_least, new_run_directory, non_negative_int,
+                  non_negative_number, number_in, positive_number, read_packing)
+from .network.contact_graph import NEAR_CONTACT_GAP
 from .rundir import RunDirectoryTaken, atomic_run_directory
 from .rundir import write_json as write_strict_json
 
@@ -81,6 +82,9 @@ def build_parser() -> argparse.ArgumentParser:
                                                  "Huang sample)")
     da.add_argument("--n", type=grain_count, default=1395, help="discs of the compacted samples (default 1395)")
     da.add_argument("--seed", type=non_negative_int, default=0, help="packing seed (default 0)")
+    da.add_argument("--contact-gap", type=non_negative_number, default=NEAR_CONTACT_GAP,
+                    help="grain pairs closer than this fraction of the smaller radius are pipes (default %(default)g, "
+                         "the coupled runs'; 0.38 gives the paper's network counts: decisions #73)")
     da.add_argument("--out", type=Path, help="run directory to create (default runs/darcy-<time>)")
     da.add_argument("--quiet", action="store_true", help="no progress lines")
     return parser
@@ -257,15 +261,9 @@ def run_darcy_command(args, argv) -> int:
     from .coupling.apertures import ApertureLaw
     from .coupling.darcy import PAPER_PERMEABILITY, PAPER_STRESS, packing_permeability, permeability_sweep
     from .coupling.radial import default_huang_packing_path
-    from .network.packing import DiscPacking
 
     path = args.packing or Path(str(default_huang_packing_path()))
-    if not Path(path).is_file():
-        raise InputError(f"--packing: no such file {str(path)!r}")
-    try:
-        packing = DiscPacking.load(path)
-    except Exception as exc:  # not an npz, or missing arrays
-        raise InputError(f"--packing: cannot read a packing from {str(path)!r} ({type(exc).__name__})") from None
+    packing = read_packing(path)
     out = new_run_directory(args.out, args.command)
     t0 = time.perf_counter()
     law = ApertureLaw()
@@ -277,8 +275,8 @@ def run_darcy_command(args, argv) -> int:
                   f"{res.extra['seconds']:.0f} s", file=sys.stderr, flush=True)
 
     sweep = permeability_sweep(args.stresses, args.n, args.seed, size=1.25e-3 * math.sqrt(args.n / 1395.0),
-                               law=law, progress=say)
-    stored = packing_permeability(packing, law)
+                               law=law, contact_gap=args.contact_gap, progress=say)
+    stored = packing_permeability(packing, law, args.contact_gap)
     rows = [r.row() for r in sweep]
     for r in rows:
         r["ratio_to_kozeny_carman"] = r["permeability"] / r["kozeny_carman"]
@@ -300,7 +298,7 @@ def run_darcy_command(args, argv) -> int:
                                           if at_paper else None),
         "aperture_law": {"residual_aperture_m": law.residual_aperture, "half_aperture_force_n_per_m":
                          law.half_aperture_force, "fracture_multiplier": law.fracture_multiplier},
-        "contact_gap": 0.08,
+        "contact_gap": args.contact_gap,
         "definition": "k = eta L Q / (H dP); L = distance between the mean centroids of the inflow and outflow "
                       "domains, H = y extent of the grain centres; Kozeny-Carman with d = mean diameter and the "
                       "Eq. 22 3D porosity of the box-area 2D porosity",

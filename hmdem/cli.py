@@ -85,13 +85,35 @@ def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -
     except (InputError, RunDirectoryTaken) as exc:
         print(f"{prog}: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # a run catches its own; this one came before it started
+        print(f"{prog}: interrupted before the run started; nothing written", file=sys.stderr)
+        return 130
     parser.print_help()
     return 2
 
 
 def new_run_directory(out: Path | None, name: str) -> Path:
-    """``--out`` or ``runs/<name>-<time>``; refuses an existing directory (runs never overwrite)."""
+    """``--out`` or ``runs/<name>-<time>``; refuses an existing directory (runs never overwrite)
+    and a path through a file, before any work is done."""
     out = out or Path("runs") / f"{name}-{time.strftime('%Y%m%d-%H%M%S')}"
     if out.exists():
         raise InputError(f"--out: {str(out)!r} already exists; choose a new run directory")
+    ancestor = out.absolute().parent
+    while not ancestor.exists():
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise InputError(f"--out: {str(ancestor)!r} is a file, not a directory")
     return out
+
+
+def read_packing(path: Path):
+    """The ``--packing`` file as a :class:`~hmdem.network.packing.DiscPacking`; a missing or
+    unreadable file is an :class:`InputError`."""
+    from .network.packing import DiscPacking
+
+    if not Path(path).is_file():
+        raise InputError(f"--packing: no such file {str(path)!r}")
+    try:
+        return DiscPacking.load(path)
+    except Exception as exc:  # not an npz, or an npz without a packing's arrays
+        raise InputError(f"--packing: cannot read a packing from {str(path)!r} ({type(exc).__name__})") from None

@@ -15,8 +15,8 @@ from pathlib import Path
 
 from . import __version__
 from .cases import CASES
-from .cli import (InputError, OneLineParser, dispatch, local_damping, new_run_directory, non_negative_int, positive_int,
-                  positive_number)
+from .cli import (InputError, OneLineParser, dispatch, local_damping, new_run_directory, non_negative_int,
+                  non_negative_number, positive_int, positive_number, read_packing)
 from .flow.fluids import WEAK_COMPRESSION
 from .network.packing import GRAIN_DENSITY
 from .snapshots import SnapshotRecorder
@@ -72,15 +72,19 @@ def build_parser() -> argparse.ArgumentParser:
     rad.add_argument("--fixed-port", action="store_true",
                      help="hold the grains around the injection domain in place, a rigid injection tube whose "
                           "pipes keep their apertures (default: only the boundary grains are fixed; decisions #68)")
-    rad.add_argument("--dem-cycles", type=positive_number,
+    rad.add_argument("--contact-gap", type=non_negative_number,
+                     help="grain pairs closer than this fraction of the smaller radius are pipes, starting "
+                          "detached with the Eq. 14 aperture (default 0.08, as for the Lenormand packing; 0.38 "
+                          "gives the paper's 3,490 pipes, 2,096 domains and 141 outflow domains: decisions #73)")
+    rad.add_argument("--dem-cycles", type=positive_int,
                      help="DEM cycles per flow step (the paper: 2000); default: the stable DEM step")
     rad.add_argument("--pv-tol", type=positive_number, help="P-V iteration relative tolerance (default 1e-3)")
     rad.add_argument("--pv-test", choices=("every", "inflow"),
                      help="where |p_calc - p_trial| must be within the tolerance: in every domain (default, "
                           "decisions #18) or in the inflow domains only, as seed 004 §3.2 tests it")
-    rad.add_argument("--pv-max-iter", type=positive_number,
+    rad.add_argument("--pv-max-iter", type=positive_int,
                      help="P-V iteration cap per attempt (default 12; 24 for B1)")
-    rad.add_argument("--pv-grow-after", type=positive_number,
+    rad.add_argument("--pv-grow-after", type=positive_int,
                      help="easy steps in a row before a halved flow-step cap doubles back (default 1)")
     rad.add_argument("--pv-reuse-steps", type=non_negative_int,
                      help="earlier flow steps (same dt) whose secant pairs the quasi-Newton update reuses "
@@ -119,7 +123,7 @@ def build_parser() -> argparse.ArgumentParser:
 def add_run_options(sub: argparse.ArgumentParser, default_packing: str) -> None:
     """Stopping, input and output flags shared by the linear and radial commands."""
     sub.add_argument("--t-max", type=positive_number, help="stop at this simulated time [s]")
-    sub.add_argument("--max-steps", type=positive_number, help="stop after this many steps")
+    sub.add_argument("--max-steps", type=positive_int, help="stop after this many steps")
     sub.add_argument("--packing", type=Path, help=f"packing .npz (default: {default_packing})")
     sub.add_argument("--out", type=Path, help="run directory to create (default runs/<case>-<time>)")
     sub.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -184,13 +188,13 @@ def run_linear(args, argv: list[str] | None = None) -> int:
     from .scenario import build_scenario
     from .flow.simulation import FlowModel
 
-    if args.packing is not None and not args.packing.is_file():
-        raise InputError(f"--packing: no such file {str(args.packing)!r}")
+    if args.packing is not None:
+        read_packing(args.packing)  # a missing or unreadable file stops here, before any work
     out = new_run_directory(args.out, args.case)
     case = make_case(args)
     sc = build_scenario(case, seed=args.seed, inlet=args.inlet, scheme=args.scheme, packing_path=args.packing)
     if args.max_steps is not None:
-        sc.setup.max_steps = int(args.max_steps)
+        sc.setup.max_steps = args.max_steps
     elif args.scheme == "explicit" and args.t_max is None:
         # the explicit step is ~1e-8 s: a run to breakthrough would take ~1e9 steps
         sc.setup.max_steps = EXPLICIT_DEFAULT_MAX_STEPS
@@ -202,7 +206,7 @@ def run_linear(args, argv: list[str] | None = None) -> int:
     state, rec = model.run(progress=each_step(bar, snapshots))
     if bar is not None:
         bar.close(rec.status == "breakthrough")
-    summary = write_run(out, sc, model, state, rec, seed=args.seed, argv=sys.argv[1:] if argv is None else argv,
+    summary = write_run(out, sc, model, state, rec, seed=args.seed, argv=args.argv if argv is None else argv,
                         snapshots=None if snapshots is None else snapshots.taken)
     print(f"{case.name}: {rec.status} at t = {state.t:.4g} s after {rec.steps} steps; regime: {summary['regime']}, "
           f"D_f = {summary['fractal_dimension']:.3f}, peak injection pressure {summary['peak_injection_pressure_pa']:.4g} Pa")
@@ -258,20 +262,17 @@ def run_radial(args) -> int:
     from .coupling.model import CoupledFlowModel
     from .coupling.output import write_radial_run
     from .coupling.radial import RADIAL_CASES, build_radial_scenario, start_grains
-    from .network.packing import DiscPacking
 
-    if args.packing is not None and not args.packing.is_file():
-        raise InputError(f"--packing: no such file {str(args.packing)!r}")
+    packing = None if args.packing is None else read_packing(args.packing)
     if args.one_way_volume is not None and not args.one_way:
         raise InputError("--one-way-volume: only with --one-way (the P-V iteration always puts dV in)")
     out = new_run_directory(args.out, args.case)
     case = RADIAL_CASES[args.case]
     if args.dt is not None:
         case = replace_case(case, dt=args.dt)
-    packing = DiscPacking.load(args.packing) if args.packing else None
     sc = build_radial_scenario(case, packing, ca_star=args.ca_star, viscosity_ratio=args.viscosity_ratio,
                                one_way=args.one_way, sigma=args.sigma, fixed_port=args.fixed_port,
-                               grain_density=args.grain_density)
+                               grain_density=args.grain_density, contact_gap=args.contact_gap)
     for flag, field, convert in COUPLING_FLAGS:
         if getattr(args, flag) is not None:
             setattr(sc.coupling, field, convert(getattr(args, flag)))
@@ -279,7 +280,7 @@ def run_radial(args) -> int:
     if args.t_max is not None:
         sc.setup.t_max = args.t_max
     if args.max_steps is not None:
-        sc.setup.max_steps = int(args.max_steps)
+        sc.setup.max_steps = args.max_steps
     grains = start_grains(sc, threads=args.threads)
     model = CoupledFlowModel(sc.net, sc.setup, grains, sc.coupling)
     bar = None if args.quiet else FrontProgress(case.name, sc.setup)
@@ -287,7 +288,7 @@ def run_radial(args) -> int:
     state, rec = model.run(progress=each_step(bar, snapshots))
     if bar is not None:
         bar.close(rec.status == "breakthrough")
-    summary = write_radial_run(out, sc, model, state, rec, argv=sys.argv[1:],
+    summary = write_radial_run(out, sc, model, state, rec, argv=args.argv,
                                snapshots=None if snapshots is None else snapshots.taken)
     early = ""
     if summary["early_peak_fell"]:
@@ -306,6 +307,7 @@ def main(argv=None) -> int:
         argv = ["linear", *argv]
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.argv = argv  # config.toml's command: the arguments given, also when YADE's launchers call main
     # SIGTERM ends a run like Ctrl-C: status "interrupted", the partial run directory written
     return dispatch(PROG, parser, args, {"linear": run_linear, "radial": run_radial})
 

@@ -34,6 +34,16 @@ CMD = [sys.executable, "-m", "hmdem.hele_shaw"]
     (["radial", "--pv-max-columns", "0"], "--pv-max-columns"),
     (["radial", "--damping", "1"], "--damping"),
     (["radial", "--grain-density", "0"], "--grain-density"),
+    (["radial", "--contact-gap", "-0.1"], "--contact-gap"),
+    # counts are whole numbers: 1.5 is refused, not cut down to 1
+    (["linear", "--max-steps", "1.5"], "--max-steps"),
+    (["radial", "--max-steps", "2.7"], "--max-steps"),
+    (["radial", "--dem-cycles", "1.5"], "--dem-cycles"),
+    (["radial", "--pv-max-iter", "2.5"], "--pv-max-iter"),
+    (["radial", "--pv-grow-after", "0.5"], "--pv-grow-after"),
+    # a file that is not a packing: one line, before YADE or the run directory
+    (["radial", "--packing", __file__], "--packing"),
+    (["linear", "--packing", __file__], "--packing"),
 ])
 def test_bad_input_one_line_exit_2_nothing_written(tmp_path, args, name):
     out = tmp_path / "run"
@@ -42,6 +52,13 @@ def test_bad_input_one_line_exit_2_nothing_written(tmp_path, args, name):
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and name in lines[0]
     assert list(tmp_path.iterdir()) == []
+
+
+def test_out_through_a_file_is_refused_before_the_run(tmp_path, capsys):
+    (tmp_path / "file").write_text("")
+    assert main(["radial", "--case", "B3", "--out", str(tmp_path / "file" / "run")]) == 2
+    assert "--out" in capsys.readouterr().err
+    assert [p.name for p in tmp_path.iterdir()] == ["file"]
 
 
 def test_existing_out_is_refused(tmp_path, capsys):

@@ -244,6 +244,8 @@ def test_yade_batch_runs_the_radial_script(tmp_path):
         assert summary["fixed_port"] is one_way  # the second row holds the port too
         config = tomllib.loads((tmp_path / "runs" / "batch" / name / "config.toml").read_text())
         assert config["dem"]["grain_density_kg_m3"] == density
+        # the command recorded is the one the script ran, not yade's own command line
+        assert config["run"]["command"].startswith("python -m hmdem.hele_shaw radial --case B3")
 
 
 def test_continued_pv_iteration_converges_and_conserves_mass(small_sample):

@@ -31,6 +31,7 @@ from scipy.sparse.csgraph import connected_components
 from ..calibration import kozeny_carman, porosity_2d_to_3d
 from ..flow.fluids import conductance
 from ..network.boundaries import linear_flow_boundaries
+from ..network.contact_graph import NEAR_CONTACT_GAP
 from ..network.network import Network
 from ..network.packing import GRAIN_DENSITY, DiscPacking
 from .apertures import ApertureLaw
@@ -133,7 +134,7 @@ def solve_darcy(net: Network, viscosity: float = 1.0e-3, pressure_drop: float = 
     return DarcyFlow(k, q_in, length, height, viscosity, pressure_drop, p, abs(q_in - q_out) / q_in)
 
 
-def darcy_network(pk: DiscPacking, contact_gap: float = 0.08, band_radii: float = BAND_RADII) -> Network:
+def darcy_network(pk: DiscPacking, contact_gap: float = NEAR_CONTACT_GAP, band_radii: float = BAND_RADII) -> Network:
     """The packing's contact network (:func:`radial_network`) with left / right boundary bands."""
     net = radial_network(pk, contact_gap)
     net.inlet_domains, net.outlet_domains = linear_flow_boundaries(net, band=band_radii * float(pk.radii.mean()))
@@ -184,7 +185,7 @@ class PackingPermeability:
         return out
 
 
-def packing_permeability(pk: DiscPacking, law: ApertureLaw | None = None, contact_gap: float = 0.08,
+def packing_permeability(pk: DiscPacking, law: ApertureLaw | None = None, contact_gap: float = NEAR_CONTACT_GAP,
                          k_n: float = 7.49e7, forces: np.ndarray | None = None) -> PackingPermeability:
     """Network Darcy permeability of a packing at its stored state (``forces`` per network pipe
     may be given; else they are read from YADE)."""
@@ -210,7 +211,7 @@ def packing_permeability(pk: DiscPacking, law: ApertureLaw | None = None, contac
 
 def permeability_sweep(stresses=STRESSES, n: int = 1395, seed: int = 0, *, size: float = 1.25e-3,
                        r_min: float = 13.0e-6, r_max: float = 21.6e-6, k_n: float = 7.49e7,
-                       density: float = GRAIN_DENSITY, law: ApertureLaw | None = None, contact_gap: float = 0.08,
+                       density: float = GRAIN_DENSITY, law: ApertureLaw | None = None, contact_gap: float = NEAR_CONTACT_GAP,
                        progress=None) -> list[PackingPermeability]:
     """Compact the sample (same seed, hence the same initial seeding) to each confining stress
     with :func:`hmdem.dem.compaction.compact_sample` and return the permeability at each.

@@ -10,7 +10,7 @@ aperture, L = the sample side and Sigma = 0.2 L: the paper's inlet perimeter, ~0
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from importlib import resources
 
 import numpy as np
@@ -20,7 +20,7 @@ from ..flow.fluids import FluidPair
 from ..flow.simulation import FlowSetup
 from ..network import build_contact_network, find_contacts
 from ..network.boundaries import central_injection_boundaries
-from ..network.contact_graph import hull_grains
+from ..network.contact_graph import NEAR_CONTACT_GAP, hull_grains
 from ..network.network import Network, pipes_touching
 from ..network.packing import GRAIN_DENSITY, DiscPacking
 from .apertures import ApertureLaw
@@ -47,7 +47,7 @@ class RadialCase:
     geometry: str = "radial"
     mean_aperture: float = 7.53e-6  # a0: the Ca* aperture scale
     aperture_spread: float = 0.0  # apertures come from the contact forces (Eq. 13), not drawn
-    contact_gap: float = 0.08  # as for the fixed-grain packings (decisions.md)
+    contact_gap: float = NEAR_CONTACT_GAP  # as for the fixed-grain packings (decisions.md #17, #73)
     # CouplingSetup fields this case sets otherwise (decisions.md #52); the CLI flags override them
     coupling_defaults: tuple[tuple[str, object], ...] = ()
 
@@ -86,7 +86,7 @@ def domain_perimeter(net: Network, domain: int) -> float:
     return float(np.linalg.norm(net.points[edges[:, 1]] - net.points[edges[:, 0]], axis=1).sum())
 
 
-def radial_network(pk: DiscPacking, contact_gap: float = 0.08) -> Network:
+def radial_network(pk: DiscPacking, contact_gap: float = NEAR_CONTACT_GAP) -> Network:
     """Contact network of the sample with the central inflow domain and the outer ring of outflow
     domains. Pairs closer than ``contact_gap`` x the smaller radius count as contacts, as for the
     fixed-grain packings (decisions.md); those start detached, with the Eq. 14 aperture."""
@@ -120,13 +120,17 @@ class RadialScenario:
 def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, ca_star: float | None = None,
                           viscosity_ratio: float | None = None, one_way: bool = False,
                           aperture_law: ApertureLaw | None = None, sigma: float | None = None,
-                          grain_density: float = GRAIN_DENSITY, fixed_port: bool = False) -> RadialScenario:
+                          grain_density: float = GRAIN_DENSITY, fixed_port: bool = False,
+                          contact_gap: float | None = None) -> RadialScenario:
     """Network, flow set-up and coupling parameters of a radial case (no DEM yet, no YADE).
     ``sigma``: the Eq. 24 inlet perimeter Sigma [m] (default :data:`PAPER_SIGMA_OVER_LENGTH` x L).
     ``grain_density``: of the discs [kg/m^3]; it sets how fast the port's grains yield (BENCHMARKS.md).
     ``fixed_port``: hold the grains around the inflow domain as well, a rigid injection tube
-    whose pipes keep their apertures (decisions.md #68); the seed fixes the boundary grains only."""
+    whose pipes keep their apertures (decisions.md #68); the seed fixes the boundary grains only.
+    ``contact_gap``: pairs closer than this fraction of the smaller radius are pipes (default the case's)."""
     pk = packing or DiscPacking.load(default_huang_packing_path())
+    if contact_gap is not None:
+        case = replace(case, contact_gap=contact_gap)
     net = radial_network(pk, case.contact_gap)
     eta_inv = case.viscosity_inv if viscosity_ratio is None else viscosity_ratio * AIR_VISCOSITY
     fluids = huang_fluids(eta_inv)

@@ -16,6 +16,10 @@ from scipy.spatial import Delaunay, cKDTree
 
 from .network import OUTSIDE, Network
 
+# pairs closer than this fraction of the smaller radius are pipes: the Lenormand packing's
+# network then has the paper's size (decisions #2); the Huang sample's keeps it (#17, #73)
+NEAR_CONTACT_GAP = 0.08
+
 
 def find_contacts(centres: np.ndarray, radii: np.ndarray, tolerance: float = 1e-3) -> np.ndarray:
     """Pairs (i < j) of discs whose gap is at most ``tolerance`` x the smaller radius."""
