@@ -39,7 +39,7 @@ def _finish_sample_plane(fig, ax, path, title: str, autoscale: bool = True) -> N
         ax.autoscale_view()
     ax.set_xlabel("x [mm]")
     ax.set_ylabel("y [mm]")
-    ax.set_title(title, fontsize=9)
+    fig.suptitle(title, fontsize=9)  # over the whole figure: a long title clears the colour bar
     fig.tight_layout()
     fig.savefig(path, dpi=130)
     plt.close(fig)
@@ -55,7 +55,7 @@ def plot_pattern(path, net: Network, saturation: np.ndarray, title: str, radii=N
     if overlay is not None and len(overlay):
         ax.add_collection(LineCollection(np.asarray(overlay) * 1e3, colors="tab:red", linewidths=1.2,
                                          label=f"opened contacts ({len(overlay)})"))
-    for ids, colour, label in ((net.inlet_domains, "tab:green", "inflow"), (net.outlet_domains, "tab:red", "outflow")):
+    for ids, colour, label in ((net.inlet_domains, "tab:green", "inflow"), (net.outlet_domains, "tab:purple", "outflow")):
         c = net.domain_centroid[ids] * 1e3
         ax.plot(c[:, 0], c[:, 1], ".", color=colour, ms=3, label=label)
     fig.colorbar(pc, ax=ax, label="invading saturation S")

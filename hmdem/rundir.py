@@ -33,11 +33,12 @@ def toml_value(v) -> str:
 
 
 def write_toml(path: Path, sections: dict[str, dict]) -> None:
-    """Minimal TOML writer for flat sections of scalars (tomllib reads it back)."""
+    """Minimal TOML writer for flat sections of scalars (tomllib reads it back). TOML has no
+    null: a value left unset (None) is left out."""
     lines = []
     for name, table in sections.items():
         lines.append(f"[{name}]")
-        lines += [f"{k} = {toml_value(v)}" for k, v in table.items()]
+        lines += [f"{k} = {toml_value(v)}" for k, v in table.items() if v is not None]
         lines.append("")
     path.write_text("\n".join(lines))
 

@@ -373,3 +373,11 @@ def test_pressure_beyond_the_constant_bulk_modulus_range_is_flagged(tmp_path, ca
     s = json.loads((chen / "summary.json").read_text())
     assert s["weakly_compressible"] is True and s["peak_compression"] < 1e-3
     assert "warning" not in capsys.readouterr().err
+
+
+def test_config_toml_leaves_unset_values_out(tmp_path):
+    # TOML has no null: an unset option (None) is left out, not written as the string "None"
+    from hmdem.rundir import write_toml
+
+    write_toml(tmp_path / "c.toml", {"coupling": {"dem_cycles_per_step": None, "pv_rtol": 1e-3, "note": "None?"}})
+    assert tomllib.loads((tmp_path / "c.toml").read_text()) == {"coupling": {"pv_rtol": 1e-3, "note": "None?"}}
