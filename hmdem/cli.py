@@ -85,8 +85,8 @@ def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -
     except (InputError, RunDirectoryTaken) as exc:
         print(f"{prog}: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:  # a run catches its own; this one came before it started
-        print(f"{prog}: interrupted before the run started; nothing written", file=sys.stderr)
+    except KeyboardInterrupt:  # a run's time steps catch their own; this one came outside them
+        print(f"{prog}: interrupted outside a run's time steps; no run directory was finished", file=sys.stderr)
         return 130
     parser.print_help()
     return 2

@@ -18,6 +18,7 @@ from .cases import CASES
 from .cli import (InputError, OneLineParser, dispatch, local_damping, new_run_directory, non_negative_int,
                   non_negative_number, positive_int, positive_number, read_packing)
 from .flow.fluids import WEAK_COMPRESSION
+from .network.contact_graph import NEAR_CONTACT_GAP
 from .network.packing import GRAIN_DENSITY
 from .snapshots import SnapshotRecorder
 
@@ -74,8 +75,8 @@ def build_parser() -> argparse.ArgumentParser:
                           "pipes keep their apertures (default: only the boundary grains are fixed; decisions #68)")
     rad.add_argument("--contact-gap", type=non_negative_number,
                      help="grain pairs closer than this fraction of the smaller radius are pipes, starting "
-                          "detached with the Eq. 14 aperture (default 0.08, as for the Lenormand packing; 0.38 "
-                          "gives the paper's 3,490 pipes, 2,096 domains and 141 outflow domains: decisions #73)")
+                          f"detached with the Eq. 14 aperture (default {NEAR_CONTACT_GAP:g}, as for the Lenormand "
+                          "packing; 0.38 gives about the paper's 3,490 pipes and 141 outflow domains: decisions #73)")
     rad.add_argument("--dem-cycles", type=positive_int,
                      help="DEM cycles per flow step (the paper: 2000); default: the stable DEM step")
     rad.add_argument("--pv-tol", type=positive_number, help="P-V iteration relative tolerance (default 1e-3)")
@@ -182,8 +183,15 @@ class FrontProgress:
         self.bar.close()
 
 
+def recorded_argv(args) -> list[str]:
+    """The arguments config.toml records: those :func:`main` parsed (also when a YADE script
+    calls it), else the process's own."""
+    return getattr(args, "argv", sys.argv[1:])
+
+
 def run_linear(args, argv: list[str] | None = None) -> int:
-    """One linear run from parsed arguments; ``argv`` (default sys.argv) goes to config.toml."""
+    """One linear run from parsed arguments; ``argv`` (default: the one :func:`main` parsed, else
+    sys.argv) goes to config.toml."""
     from .report import write_run
     from .scenario import build_scenario
     from .flow.simulation import FlowModel
@@ -206,7 +214,7 @@ def run_linear(args, argv: list[str] | None = None) -> int:
     state, rec = model.run(progress=each_step(bar, snapshots))
     if bar is not None:
         bar.close(rec.status == "breakthrough")
-    summary = write_run(out, sc, model, state, rec, seed=args.seed, argv=args.argv if argv is None else argv,
+    summary = write_run(out, sc, model, state, rec, seed=args.seed, argv=recorded_argv(args) if argv is None else argv,
                         snapshots=None if snapshots is None else snapshots.taken)
     print(f"{case.name}: {rec.status} at t = {state.t:.4g} s after {rec.steps} steps; regime: {summary['regime']}, "
           f"D_f = {summary['fractal_dimension']:.3f}, peak injection pressure {summary['peak_injection_pressure_pa']:.4g} Pa")
@@ -288,7 +296,7 @@ def run_radial(args) -> int:
     state, rec = model.run(progress=each_step(bar, snapshots))
     if bar is not None:
         bar.close(rec.status == "breakthrough")
-    summary = write_radial_run(out, sc, model, state, rec, argv=args.argv,
+    summary = write_radial_run(out, sc, model, state, rec, argv=recorded_argv(args),
                                snapshots=None if snapshots is None else snapshots.taken)
     early = ""
     if summary["early_peak_fell"]:

@@ -130,6 +130,20 @@ def test_an_out_taken_during_the_run_keeps_the_results_beside_it(tmp_path, capsy
     assert len(lines) == 1 and lines[0].startswith("prog: --out:") and "second.unsaved-" in lines[0]
 
 
+def test_interrupt_outside_a_runs_steps_is_one_line_and_status_130(capsys):
+    # e.g. Ctrl-C while YADE settles the sample, before the first step: no traceback
+    import argparse
+
+    from hmdem.cli import dispatch
+
+    def command(args):
+        raise KeyboardInterrupt
+
+    assert dispatch("prog", argparse.ArgumentParser(), argparse.Namespace(command="run"), {"run": command}) == 130
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("prog: interrupted")
+
+
 def test_interrupted_run_leaves_valid_directory(tmp_path, interrupt_after):
     # Ctrl-C mid-run: the run directory is still complete, with status "interrupted"
     interrupt_after(20)

@@ -31,7 +31,7 @@ argv = ["radial", "--case", table.case, "--quiet"]
 if table.oneWay:
     argv.append("--one-way")
 if table.maxSteps:
-    argv += ["--max-steps", str(table.maxSteps)]
+    argv += ["--max-steps", str(int(table.maxSteps))]  # a table may write 2e4
 if table.dt:
     argv += ["--dt", str(table.dt)]
 if table.grainDensity:

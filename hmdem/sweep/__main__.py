@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 from .. import __version__
-from ..cli import InputError, OneLineParser, dispatch, positive_int
+from ..cli import InputError, OneLineParser, dispatch, positive_int, read_packing
 
 PROG = "python -m hmdem.sweep"
 DEFAULT_LOG_M = "-5:2:5"
@@ -80,8 +80,8 @@ def run_lenormand(args) -> int:
     from .grid import lenormand_points, lenormand_spec
     from .manifest import DONE, FAILED, Manifest
 
-    if args.packing is not None and not args.packing.is_file():
-        raise InputError(f"--packing: no such file {str(args.packing)!r}")
+    if args.packing is not None:
+        read_packing(args.packing)  # a missing or unreadable file is one line, not a failure per point
     out = args.out or Path("runs") / f"lenormand-{time.strftime('%Y%m%d-%H%M%S')}"
     if out.exists() and not (out / "manifest.json").is_file() and any(out.iterdir()):
         raise InputError(f"--out: {str(out)!r} exists and is not a sweep directory; choose a new one")
