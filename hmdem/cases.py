@@ -51,7 +51,7 @@ class Case:
     t_max: float = np.inf
     mean_aperture: float = 0.42e-3
     aperture_spread: float = 0.7
-    contact_gap: float = NEAR_CONTACT_GAP  # gaps below this fraction of the smaller radius count as contacts (decisions.md)
+    contact_gap: float = NEAR_CONTACT_GAP  # gaps below this fraction of the smaller radius are contacts (#2)
     expected_regime: str = ""  # the paper's label, for reference only (never used to label a run)
     notes: str = ""
     extra: dict = field(default_factory=dict)

@@ -184,14 +184,13 @@ class FrontProgress:
 
 
 def recorded_argv(args) -> list[str]:
-    """The arguments config.toml records: those :func:`main` parsed (also when a YADE script
-    calls it), else the process's own."""
+    """The arguments config.toml records: ``args.argv``, set by :func:`main` (also when a YADE
+    script calls it) and by the sweep runner, else the process's own."""
     return getattr(args, "argv", sys.argv[1:])
 
 
-def run_linear(args, argv: list[str] | None = None) -> int:
-    """One linear run from parsed arguments; ``argv`` (default: the one :func:`main` parsed, else
-    sys.argv) goes to config.toml."""
+def run_linear(args) -> int:
+    """One linear run from parsed arguments; config.toml records :func:`recorded_argv`."""
     from .report import write_run
     from .scenario import build_scenario
     from .flow.simulation import FlowModel
@@ -214,7 +213,7 @@ def run_linear(args, argv: list[str] | None = None) -> int:
     state, rec = model.run(progress=each_step(bar, snapshots))
     if bar is not None:
         bar.close(rec.status == "breakthrough")
-    summary = write_run(out, sc, model, state, rec, seed=args.seed, argv=recorded_argv(args) if argv is None else argv,
+    summary = write_run(out, sc, model, state, rec, seed=args.seed, argv=recorded_argv(args),
                         snapshots=None if snapshots is None else snapshots.taken)
     print(f"{case.name}: {rec.status} at t = {state.t:.4g} s after {rec.steps} steps; regime: {summary['regime']}, "
           f"D_f = {summary['fractal_dimension']:.3f}, peak injection pressure {summary['peak_injection_pressure_pa']:.4g} Pa")

@@ -55,7 +55,8 @@ def plot_pattern(path, net: Network, saturation: np.ndarray, title: str, radii=N
     if overlay is not None and len(overlay):
         ax.add_collection(LineCollection(np.asarray(overlay) * 1e3, colors="tab:red", linewidths=1.2,
                                          label=f"opened contacts ({len(overlay)})"))
-    for ids, colour, label in ((net.inlet_domains, "tab:green", "inflow"), (net.outlet_domains, "tab:purple", "outflow")):
+    for ids, colour, label in ((net.inlet_domains, "tab:green", "inflow"),
+                               (net.outlet_domains, "tab:purple", "outflow")):
         c = net.domain_centroid[ids] * 1e3
         ax.plot(c[:, 0], c[:, 1], ".", color=colour, ms=3, label=label)
     fig.colorbar(pc, ax=ax, label="invading saturation S")

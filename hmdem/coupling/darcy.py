@@ -211,8 +211,8 @@ def packing_permeability(pk: DiscPacking, law: ApertureLaw | None = None, contac
 
 def permeability_sweep(stresses=STRESSES, n: int = 1395, seed: int = 0, *, size: float = 1.25e-3,
                        r_min: float = 13.0e-6, r_max: float = 21.6e-6, k_n: float = 7.49e7,
-                       density: float = GRAIN_DENSITY, law: ApertureLaw | None = None, contact_gap: float = NEAR_CONTACT_GAP,
-                       progress=None) -> list[PackingPermeability]:
+                       density: float = GRAIN_DENSITY, law: ApertureLaw | None = None,
+                       contact_gap: float = NEAR_CONTACT_GAP, progress=None) -> list[PackingPermeability]:
     """Compact the sample (same seed, hence the same initial seeding) to each confining stress
     with :func:`hmdem.dem.compaction.compact_sample` and return the permeability at each.
     ``progress(k, stress, result)`` is called after each stress."""

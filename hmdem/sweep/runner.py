@@ -54,8 +54,10 @@ def run_point(point: SweepPoint, out: Path, packing: str | None = None, recorded
             return finished
         shutil.rmtree(out)
     argv = cli_arguments(point, out, packing)
+    args = build_parser().parse_args(argv)
+    args.argv = recorded_as or argv  # config.toml's command (hele_shaw.recorded_argv)
     with redirect_stdout(io.StringIO()):  # the run's two result lines; the sweep reports instead
-        code = run_linear(build_parser().parse_args(argv), recorded_as or argv)
+        code = run_linear(args)
     summary = read_summary(out, finished_only=False)
     if code != 0 or summary is None or summary.get("status") in INCOMPLETE:
         reason = (summary or {}).get("status_message")
