@@ -1,7 +1,8 @@
 """Command line: the mechanical and hydraulic calibration tests of the Huang sample (seed 004 §4.2).
 
-    python -m hmdem.calibrate biaxial [--n N] [--sigma3 PA] [--strain-rate R] [--seed S] [--out DIR]
-    python -m hmdem.calibrate darcy [--stresses LIST] [--packing FILE] [--out DIR]
+    python -m hmdem.calibrate biaxial [--n N] [--sigma3 PA] [--strain-rate R] [--seed S]
+                                      [--contact-stiffness KN] [--friction MU] [--stiffness-ratio R] [--out DIR]
+    python -m hmdem.calibrate darcy [--stresses LIST] [--packing FILE] [--contact-stiffness KN] [--out DIR]
 
 biaxial: isotropic compaction to sigma3, then strain-controlled loading to 2.5 % axial strain;
 E, nu, peak sigma1 and the Mohr-Coulomb friction angle against the paper's 65.4 MPa, 0.102,
@@ -22,21 +23,17 @@ import time
 from pathlib import Path
 
 from . import __version__
-from .cli import (InputError, OneLineParser, int_at_least, new_run_directory, non_negative_int,
-                  non_negative_number, number_in, positive_number, read_packing)
+from .cli import (InputError, OneLineParser, add_contact_arguments, grain_count, new_run_directory,
+                  non_negative_int, non_negative_number, number_in, positive_number, read_packing)
 from .network.contact_graph import NEAR_CONTACT_GAP
 from .rundir import RunDirectoryTaken, atomic_run_directory
 from .rundir import write_json as write_strict_json
 
 PROG = "python -m hmdem.calibrate"
-MIN_GRAINS = 50  # fewer discs do not make a packing with a load-bearing interior
 
 
 class _Parser(OneLineParser):
     command = PROG
-
-
-grain_count = int_at_least(MIN_GRAINS)
 
 
 strain_value = number_in("an axial strain in (0, 0.5)", lambda v: 0 < v < 0.5)
@@ -70,6 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help=f"axial strain rate [1/s] (default {STRAIN_RATE:g})")
     bi.add_argument("--max-strain", type=strain_value, default=0.025, help="final axial strain (default 0.025)")
     bi.add_argument("--seed", type=non_negative_int, default=0, help="packing seed (default 0)")
+    add_contact_arguments(bi)
     bi.add_argument("--rate-check", action="store_true",
                     help="repeat the loading at half the strain rate on the same sample and report the change")
     bi.add_argument("--out", type=Path, help="run directory to create (default runs/biaxial-<time>)")
@@ -82,6 +80,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                  "Huang sample)")
     da.add_argument("--n", type=grain_count, default=1395, help="discs of the compacted samples (default 1395)")
     da.add_argument("--seed", type=non_negative_int, default=0, help="packing seed (default 0)")
+    add_contact_arguments(da, friction=False)  # the compactions' k_n; apertures follow from the forces
     da.add_argument("--contact-gap", type=non_negative_number, default=NEAR_CONTACT_GAP,
                     help="grain pairs closer than this fraction of the smaller radius are pipes (default %(default)g, "
                          "the coupled runs'; 0.38 gives the paper's network counts: decisions #73)")
@@ -182,6 +181,7 @@ def run_biaxial_command(args, argv) -> int:
     t0 = time.perf_counter()
     bar = None if args.quiet else _BiaxialProgress(args.max_strain)
     res = run_biaxial(args.n, args.sigma3, args.strain_rate, args.seed, args.max_strain,
+                      k_n=args.contact_stiffness, ks_over_kn=args.stiffness_ratio, friction=args.friction,
                       progress=None if bar is None else bar.load,
                       compaction_progress=None if bar is None else bar.compact)
     if bar is not None:
@@ -189,6 +189,7 @@ def run_biaxial_command(args, argv) -> int:
     summary = res.summary()
     if args.rate_check:
         half = load_biaxial(res.packing, args.sigma3, 0.5 * args.strain_rate, args.max_strain,
+                            friction=args.friction, ks_over_kn=args.stiffness_ratio,
                             progress=None if bar is None else bar.load)
         if bar is not None:
             bar.close()
@@ -275,7 +276,7 @@ def run_darcy_command(args, argv) -> int:
                   f"{res.extra['seconds']:.0f} s", file=sys.stderr, flush=True)
 
     sweep = permeability_sweep(args.stresses, args.n, args.seed, size=1.25e-3 * math.sqrt(args.n / 1395.0),
-                               law=law, contact_gap=args.contact_gap, progress=say)
+                               k_n=args.contact_stiffness, law=law, contact_gap=args.contact_gap, progress=say)
     stored = packing_permeability(packing, law, args.contact_gap)
     rows = [r.row() for r in sweep]
     for r in rows:
@@ -299,6 +300,7 @@ def run_darcy_command(args, argv) -> int:
         "aperture_law": {"residual_aperture_m": law.residual_aperture, "half_aperture_force_n_per_m":
                          law.half_aperture_force, "fracture_multiplier": law.fracture_multiplier},
         "contact_gap": args.contact_gap,
+        "contact_stiffness_n_per_m": args.contact_stiffness,
         "definition": "k = eta L Q / (H dP); L = distance between the mean centroids of the inflow and outflow "
                       "domains, H = y extent of the grain centres; Kozeny-Carman with d = mean diameter and the "
                       "Eq. 22 3D porosity of the box-area 2D porosity",

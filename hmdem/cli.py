@@ -68,6 +68,25 @@ def int_at_least(minimum: int, allowed: str | None = None):
 
 non_negative_int = int_at_least(0, "a non-negative integer")
 positive_int = int_at_least(1)
+MIN_GRAINS = 50  # fewer discs do not make a packing with a load-bearing interior
+grain_count = int_at_least(MIN_GRAINS)
+
+
+def add_contact_arguments(parser: argparse.ArgumentParser, *, stiffness: bool = True, friction: bool = True) -> None:
+    """The grain-contact parameters of the Huang sample (seed 004 Table 2), shared by the commands
+    that build it: ``--contact-stiffness`` (k_n), ``--friction`` (mu) and ``--stiffness-ratio``
+    (k_s / k_n). Table 2's values are the defaults; the biaxial test calibrates them (digest §2.3)."""
+    from .network.packing import CONTACT_STIFFNESS, GRAIN_FRICTION
+
+    if stiffness:
+        parser.add_argument("--contact-stiffness", type=positive_number, default=CONTACT_STIFFNESS,
+                            help="normal contact stiffness k_n [N/m per m of depth] (default %(default)g, Table 2)")
+    if friction:
+        parser.add_argument("--friction", type=non_negative_number, default=GRAIN_FRICTION,
+                            help="Coulomb friction coefficient of the grain contacts (default %(default)g, Table 2; "
+                                 "walls stay frictionless)")
+        parser.add_argument("--stiffness-ratio", type=positive_number, default=1.0,
+                            help="shear over normal contact stiffness k_s / k_n (default %(default)g, Table 2)")
 
 
 def _interrupt(signum, frame):

@@ -15,8 +15,8 @@ from pathlib import Path
 
 from . import __version__
 from .cases import CASES
-from .cli import (InputError, OneLineParser, dispatch, local_damping, new_run_directory, non_negative_int,
-                  non_negative_number, positive_int, positive_number, read_packing)
+from .cli import (InputError, OneLineParser, add_contact_arguments, dispatch, local_damping, new_run_directory,
+                  non_negative_int, non_negative_number, positive_int, positive_number, read_packing)
 from .flow.fluids import WEAK_COMPRESSION
 from .network.contact_graph import NEAR_CONTACT_GAP
 from .network.packing import GRAIN_DENSITY
@@ -77,6 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="grain pairs closer than this fraction of the smaller radius are pipes, starting "
                           f"detached with the Eq. 14 aperture (default {NEAR_CONTACT_GAP:g}, as for the Lenormand "
                           "packing; 0.38 gives about the paper's 3,490 pipes and 141 outflow domains: decisions #73)")
+    add_contact_arguments(rad, stiffness=False)  # k_n is the packing's: compaction --contact-stiffness
     rad.add_argument("--dem-cycles", type=positive_int,
                      help="DEM cycles per flow step (the paper: 2000); default: the stable DEM step")
     rad.add_argument("--pv-tol", type=positive_number, help="P-V iteration relative tolerance (default 1e-3)")
@@ -279,7 +280,8 @@ def run_radial(args) -> int:
         case = replace_case(case, dt=args.dt)
     sc = build_radial_scenario(case, packing, ca_star=args.ca_star, viscosity_ratio=args.viscosity_ratio,
                                one_way=args.one_way, sigma=args.sigma, fixed_port=args.fixed_port,
-                               grain_density=args.grain_density, contact_gap=args.contact_gap)
+                               grain_density=args.grain_density, contact_gap=args.contact_gap,
+                               friction=args.friction, stiffness_ratio=args.stiffness_ratio)
     for flag, field, convert in COUPLING_FLAGS:
         if getattr(args, flag) is not None:
             setattr(sc.coupling, field, convert(getattr(args, flag)))

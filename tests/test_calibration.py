@@ -153,6 +153,10 @@ def test_elastic_constants_use_compression_positive_strains():
     (["biaxial", "--n", "1.5"], "--n"),
     (["biaxial", "--seed", "-1"], "--seed"),
     (["biaxial", "--max-strain", "0.9"], "--max-strain"),
+    (["biaxial", "--contact-stiffness", "0"], "--contact-stiffness"),
+    (["biaxial", "--friction", "nan"], "--friction"),
+    (["biaxial", "--stiffness-ratio", "-1"], "--stiffness-ratio"),
+    (["darcy", "--contact-stiffness", "inf"], "--contact-stiffness"),
     (["darcy", "--stresses", "1e5,-2e5"], "--stresses"),
     (["darcy", "--stresses", "1e5,,2e5"], "--stresses"),
     (["darcy", "--stresses", "abc"], "--stresses"),
@@ -169,6 +173,26 @@ def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, monkeypatch, cap
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(f"python -m hmdem.calibrate: {flag}: ")
     assert list(tmp_path.iterdir()) == []  # no run directory, no temporary one
+
+
+@pytest.mark.parametrize("args,flag", [
+    (["--contact-stiffness", "-7.49e7"], "--contact-stiffness"),
+    (["--n", "3"], "--n"),
+    (["--stress", "0"], "--stress"),
+    (["--out", "a_file/p.npz"], "--out"),
+])
+def test_compaction_bad_input_is_one_line_exit_2_nothing_written(tmp_path, monkeypatch, capsys, args, flag):
+    from hmdem.dem.compaction import main as compaction_main
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a_file").write_text("x")  # an --out through a file
+    argv = args if "--out" in args else [*args, "--out", "p.npz"]
+    with pytest.raises(SystemExit) as exc:
+        compaction_main(argv)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"python -m hmdem.dem.compaction: {flag}: ")
+    assert [p.name for p in tmp_path.iterdir()] == ["a_file"]
 
 
 def test_existing_run_directory_is_refused(tmp_path, capsys):

@@ -35,6 +35,8 @@ CMD = [sys.executable, "-m", "hmdem.hele_shaw"]
     (["radial", "--damping", "1"], "--damping"),
     (["radial", "--grain-density", "0"], "--grain-density"),
     (["radial", "--contact-gap", "-0.1"], "--contact-gap"),
+    (["radial", "--friction", "-0.1"], "--friction"),
+    (["radial", "--stiffness-ratio", "0"], "--stiffness-ratio"),
     # counts are whole numbers: 1.5 is refused, not cut down to 1
     (["linear", "--max-steps", "1.5"], "--max-steps"),
     (["radial", "--max-steps", "2.7"], "--max-steps"),
@@ -263,7 +265,7 @@ def test_radial_run_directory_contract(tmp_path):
 
 
 @pytest.mark.yade
-def test_fixed_port_holds_the_port_grains_and_both_flags_are_recorded(tmp_path):
+def test_fixed_port_holds_the_port_grains_and_the_grain_flags_are_recorded(tmp_path):
     # --fixed-port holds the injection domain's grains where the packing put them while B3's
     # pressure (MPa within microseconds) moves their neighbours; --grain-density is recorded
     # with it (decisions #68; its masses and DEM step: test_coupled_run)
@@ -271,13 +273,16 @@ def test_fixed_port_holds_the_port_grains_and_both_flags_are_recorded(tmp_path):
 
     out = tmp_path / "b3"
     assert main(["radial", "--case", "B3", "--max-steps", "6", "--fixed-port", "--grain-density", "5300",
-                 "--out", str(out), "--quiet"]) == 0
+                 "--friction", "0.85", "--stiffness-ratio", "0.5", "--out", str(out), "--quiet"]) == 0
     fractures = np.load(out / "fractures.npz")
     port = port_grains(build_radial_scenario(RADIAL_CASES["B3"]).net)
     moved = np.linalg.norm(fractures["positions"] - fractures["initial_positions"], axis=1)
     assert np.all(moved[port] == 0.0) and moved.max() > 1e-7
     config = tomllib.loads((out / "config.toml").read_text())
     assert config["dem"]["fixed_port"] is True and config["dem"]["grain_density_kg_m3"] == 5300.0
+    # the contact parameters too; k_n is the shipped packing's (Table 2's: decisions #74)
+    assert (config["dem"]["friction"], config["dem"]["stiffness_ratio"]) == (0.85, 0.5)
+    assert config["dem"]["contact_stiffness_n_per_m"] == 7.49e7
     assert json.loads((out / "summary.json").read_text())["fixed_port"] is True
 
 

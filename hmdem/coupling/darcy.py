@@ -33,7 +33,7 @@ from ..flow.fluids import conductance
 from ..network.boundaries import linear_flow_boundaries
 from ..network.contact_graph import NEAR_CONTACT_GAP
 from ..network.network import Network
-from ..network.packing import GRAIN_DENSITY, DiscPacking
+from ..network.packing import CONTACT_STIFFNESS, GRAIN_DENSITY, DiscPacking
 from .apertures import ApertureLaw
 from .geometry import contact_gaps
 from .radial import radial_network
@@ -141,14 +141,14 @@ def darcy_network(pk: DiscPacking, contact_gap: float = NEAR_CONTACT_GAP, band_r
     return net
 
 
-def packing_contact_forces(pk: DiscPacking, pairs: np.ndarray, k_n: float = 7.49e7) -> np.ndarray:
+def packing_contact_forces(pk: DiscPacking, pairs: np.ndarray) -> np.ndarray:
     """Normal contact force of each grain pair [N per m] in the packing as it is stored: the
-    packing is loaded into YADE with its boundary grains fixed (they replace the walls) and one
-    DEM step creates the interactions; 0 for pairs not in contact."""
+    packing is loaded into YADE (with the k_n it was compacted with) and its boundary grains fixed
+    (they replace the walls), and one DEM step creates the interactions; 0 for pairs not in contact."""
     from ..dem.assembly import DiscAssembly
 
     fixed = pk.fixed if len(pk.fixed) == len(pk.radii) else None
-    grains = DiscAssembly(pk.centres, pk.radii, k_n=k_n, fixed=fixed)
+    grains = DiscAssembly(pk.centres, pk.radii, k_n=pk.contact_stiffness, fixed=fixed)
     grains.run(1)
     return grains.normal_forces(pairs)
 
@@ -186,13 +186,13 @@ class PackingPermeability:
 
 
 def packing_permeability(pk: DiscPacking, law: ApertureLaw | None = None, contact_gap: float = NEAR_CONTACT_GAP,
-                         k_n: float = 7.49e7, forces: np.ndarray | None = None) -> PackingPermeability:
+                         forces: np.ndarray | None = None) -> PackingPermeability:
     """Network Darcy permeability of a packing at its stored state (``forces`` per network pipe
     may be given; else they are read from YADE)."""
     law = law or ApertureLaw()
     net = darcy_network(pk, contact_gap)
     if forces is None:
-        forces = packing_contact_forces(pk, net.pipe_grains, k_n)
+        forces = packing_contact_forces(pk, net.pipe_grains)
     set_contact_apertures(net, pk, forces, law)
     flow = solve_darcy(net)
     phi2 = pk.porosity
@@ -210,7 +210,7 @@ def packing_permeability(pk: DiscPacking, law: ApertureLaw | None = None, contac
 
 
 def permeability_sweep(stresses=STRESSES, n: int = 1395, seed: int = 0, *, size: float = 1.25e-3,
-                       r_min: float = 13.0e-6, r_max: float = 21.6e-6, k_n: float = 7.49e7,
+                       r_min: float = 13.0e-6, r_max: float = 21.6e-6, k_n: float = CONTACT_STIFFNESS,
                        density: float = GRAIN_DENSITY, law: ApertureLaw | None = None,
                        contact_gap: float = NEAR_CONTACT_GAP, progress=None) -> list[PackingPermeability]:
     """Compact the sample (same seed, hence the same initial seeding) to each confining stress
@@ -222,7 +222,7 @@ def permeability_sweep(stresses=STRESSES, n: int = 1395, seed: int = 0, *, size:
     for k, stress in enumerate(stresses):
         t0 = time.perf_counter()
         pk = compact_sample(n, size, r_min, r_max, stress=float(stress), seed=seed, k_n=k_n, density=density)
-        res = packing_permeability(pk, law, contact_gap, k_n)
+        res = packing_permeability(pk, law, contact_gap)
         res.extra = {"target_stress": float(stress), "seconds": time.perf_counter() - t0}
         out.append(res)
         if progress is not None:

@@ -121,7 +121,8 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None) -> 
               "dem": {"timestep_s": grains.timestep, "stable_timestep_s": sc.coupling.stable_dem_step,
                       "n_grains": len(grains.radii), "n_fixed": int(np.sum(sc.fixed)), "threads": grains.threads,
                       "damping": grains.damping, "grain_density_kg_m3": sc.grain_density,
-                      "fixed_port": sc.fixed_port}}
+                      "contact_stiffness_n_per_m": grains.k_n, "stiffness_ratio": grains.k_s / grains.k_n,
+                      "friction": grains.friction, "fixed_port": sc.fixed_port}}
     overlay = positions[g[opened]]
     return write_run(out, sc, model, state, rec, seed=0, argv=argv, summary_extra=extra, extra_files=files,
                      overlay=overlay, config_extra=config, snapshots=snapshots)

@@ -22,7 +22,7 @@ from ..network import build_contact_network, find_contacts
 from ..network.boundaries import central_injection_boundaries
 from ..network.contact_graph import NEAR_CONTACT_GAP, hull_grains
 from ..network.network import Network, pipes_touching
-from ..network.packing import GRAIN_DENSITY, DiscPacking
+from ..network.packing import GRAIN_DENSITY, GRAIN_FRICTION, DiscPacking
 from .apertures import ApertureLaw
 from .model import CouplingSetup
 
@@ -111,6 +111,8 @@ class RadialScenario:
     fixed: np.ndarray  # grains held in place (the wall ring, the contact graph's hull; the port's with fixed_port)
     grain_density: float = GRAIN_DENSITY  # kg/m^3 of the 1 m-thick discs
     fixed_port: bool = False  # the inflow domain's grains are held too (a rigid injection tube)
+    friction: float = GRAIN_FRICTION  # Coulomb coefficient of the grain contacts during the run
+    stiffness_ratio: float = 1.0  # k_s / k_n; k_n is the packing's (the one it was compacted with)
 
     @property
     def packing_radii(self) -> np.ndarray:
@@ -121,13 +123,16 @@ def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, 
                           viscosity_ratio: float | None = None, one_way: bool = False,
                           aperture_law: ApertureLaw | None = None, sigma: float | None = None,
                           grain_density: float = GRAIN_DENSITY, fixed_port: bool = False,
-                          contact_gap: float | None = None) -> RadialScenario:
+                          contact_gap: float | None = None, friction: float = GRAIN_FRICTION,
+                          stiffness_ratio: float = 1.0) -> RadialScenario:
     """Network, flow set-up and coupling parameters of a radial case (no DEM yet, no YADE).
     ``sigma``: the Eq. 24 inlet perimeter Sigma [m] (default :data:`PAPER_SIGMA_OVER_LENGTH` x L).
     ``grain_density``: of the discs [kg/m^3]; it sets how fast the port's grains yield (BENCHMARKS.md).
     ``fixed_port``: hold the grains around the inflow domain as well, a rigid injection tube
     whose pipes keep their apertures (decisions.md #68); the seed fixes the boundary grains only.
-    ``contact_gap``: pairs closer than this fraction of the smaller radius are pipes (default the case's)."""
+    ``contact_gap``: pairs closer than this fraction of the smaller radius are pipes (default the case's).
+    ``friction``, ``stiffness_ratio``: the contacts' Coulomb coefficient and k_s / k_n (Table 2's
+    0.6 and 1 by default); k_n is the packing's own, so its overlaps give back its confining stress."""
     pk = packing or DiscPacking.load(default_huang_packing_path())
     if contact_gap is not None:
         case = replace(case, contact_gap=contact_gap)
@@ -149,7 +154,8 @@ def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, 
         fixed |= pk.fixed
     if fixed_port:
         fixed[port_grains(net)] = True
-    return RadialScenario(case, pk, net, setup, coupling, sigma, length, ca, fixed, grain_density, fixed_port)
+    return RadialScenario(case, pk, net, setup, coupling, sigma, length, ca, fixed, grain_density, fixed_port,
+                          friction, stiffness_ratio)
 
 
 def port_pipes(net: Network) -> np.ndarray:
@@ -169,7 +175,8 @@ def start_grains(sc: RadialScenario, threads: int | None = None):
     from ..dem.assembly import DiscAssembly
 
     pk = sc.packing
-    grains = DiscAssembly(pk.centres, pk.radii, fixed=sc.fixed, density=sc.grain_density, threads=threads)
+    grains = DiscAssembly(pk.centres, pk.radii, k_n=pk.contact_stiffness, ks_over_kn=sc.stiffness_ratio,
+                          friction=sc.friction, fixed=sc.fixed, density=sc.grain_density, threads=threads)
     grains.run(SETTLE_CYCLES)
     grains.damping = sc.coupling.dem_damping
     sc.coupling.stable_dem_step = grains.timestep = grains.stable_timestep()

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..network.packing import GRAIN_DENSITY
+from ..network.packing import CONTACT_STIFFNESS, GRAIN_DENSITY, GRAIN_FRICTION
 from ..yade_env import import_yade
 from .discs import add_discs, disc_engines
 
@@ -33,8 +33,8 @@ class DiscAssembly:
     _time_offset = 0.0  # O.time runs on through rewinds
     restores = 0  # rewinds by restore_state
 
-    def __init__(self, centres: np.ndarray, radii: np.ndarray, *, k_n: float = 7.49e7, ks_over_kn: float = 1.0,
-                 friction: float = 0.6, density: float = GRAIN_DENSITY, damping: float = 0.7,
+    def __init__(self, centres: np.ndarray, radii: np.ndarray, *, k_n: float = CONTACT_STIFFNESS,
+                 ks_over_kn: float = 1.0, friction: float = GRAIN_FRICTION, density: float = GRAIN_DENSITY, damping: float = 0.7,
                  fixed: np.ndarray | None = None, timestep_safety: float = 0.5, threads: int | None = None):
         import_yade(threads)
         from yade import O, utils

@@ -29,13 +29,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..calibration import mohr_coulomb_friction_angle
-from ..network.packing import GRAIN_DENSITY, DiscPacking
+from ..network.packing import CONTACT_STIFFNESS, GRAIN_DENSITY, GRAIN_FRICTION, DiscPacking
 from ..yade_env import import_yade
 from .assembly import run_cycles
 from .compaction import WALLS, compact_sample
 from .discs import add_discs, disc_engines
 
-FRICTION = 0.6  # grain friction coefficient (Table 2); walls: 0
 SIGMA3 = 0.1e6  # confining stress of the calibration [Pa]
 MAX_STRAIN = 0.025  # axial strain at the end of the test
 STRAIN_RATE = 5.0  # default axial strain rate [1/s]: inertial number eps' d sqrt(rho / p) ~ 3e-5
@@ -144,7 +143,7 @@ def peak(sigma1: np.ndarray, sigma3: np.ndarray, strain_axial: np.ndarray, windo
 
 
 def walled_scene(pk: DiscPacking, *, k_n: float, friction: float, density: float, damping: float,
-                 r_max: float) -> tuple[list[int], list[int]]:
+                 r_max: float, ks_over_kn: float = 1.0) -> tuple[list[int], list[int]]:
     """A fresh YADE scene of the packing between four frictionless walls at x = 0, W, y = 0, H
     (the compaction's walls: same material and order :data:`WALLS`). Returns (grain ids, wall ids)."""
     import_yade()
@@ -158,7 +157,7 @@ def walled_scene(pk: DiscPacking, *, k_n: float, friction: float, density: float
         origin = [0.0, 0.0, 0.0]
         origin[axis] = 0.0 if side < 0 else pk.box[axis]
         walls.append(O.bodies.append(utils.wall(tuple(origin), axis=axis, sense=-side, material=wall_mat)))
-    ids = add_discs(pk.centres, pk.radii, k_n, 1.0, friction, density)
+    ids = add_discs(pk.centres, pk.radii, k_n, ks_over_kn, friction, density)
     # a tiny detection margin: pairs touching to round-off are caught on the first step
     O.engines = disc_engines(walls=True, damping=damping, detection_factor=1.0 + 1e-6)
     O.dt = 0.5 * utils.PWaveTimeStep()
@@ -213,8 +212,8 @@ class _Walls:
 
 
 def load_biaxial(pk: DiscPacking, sigma3: float = SIGMA3, strain_rate: float = STRAIN_RATE,
-                 max_strain: float = MAX_STRAIN, *, friction: float = FRICTION, k_n: float = 7.49e7,
-                 density: float = GRAIN_DENSITY, damping: float = 0.7, r_max: float = 21.6e-6,
+                 max_strain: float = MAX_STRAIN, *, friction: float = GRAIN_FRICTION, k_n: float | None = None,
+                 ks_over_kn: float = 1.0, density: float = GRAIN_DENSITY, damping: float = 0.7, r_max: float = 21.6e-6,
                  fit_strain: tuple[float, float] = FIT_STRAIN, chunk: int = CHUNK, progress=None) -> BiaxialResult:
     """Shear a compacted packing (walls at 0, W, 0, H, as :func:`compact_sample` returns it).
 
@@ -224,12 +223,15 @@ def load_biaxial(pk: DiscPacking, sigma3: float = SIGMA3, strain_rate: float = S
     ``sigma3 H`` with H the current sample height, refreshed every chunk. Its equation of
     motion is the servo: the wall moves until the grain force balances the load, so sigma3 is
     held without the steady-state lag of a proportional velocity servo.
+    ``k_n`` defaults to the packing's own (the one its overlaps were compacted with).
     ``progress(eps_a, sigma1, sigma3)`` is called every chunk.
     """
     import_yade()
     from yade import O
 
-    ids, wall_ids = walled_scene(pk, k_n=k_n, friction=friction, density=density, damping=damping, r_max=r_max)
+    k_n = pk.contact_stiffness if k_n is None else k_n
+    ids, wall_ids = walled_scene(pk, k_n=k_n, friction=friction, density=density, damping=damping, r_max=r_max,
+                                 ks_over_kn=ks_over_kn)
     walls = _Walls(O, wall_ids)
     dt = float(O.dt)
     w0, h0 = walls.sizes()
@@ -282,13 +284,16 @@ def load_biaxial(pk: DiscPacking, sigma3: float = SIGMA3, strain_rate: float = S
 
 def run_biaxial(n: int = 1395, sigma3: float = SIGMA3, strain_rate: float = STRAIN_RATE, seed: int = 0,
                 max_strain: float = MAX_STRAIN, *, r_min: float = 13.0e-6, r_max: float = 21.6e-6,
-                k_n: float = 7.49e7, density: float = GRAIN_DENSITY, friction: float = FRICTION,
+                k_n: float = CONTACT_STIFFNESS, ks_over_kn: float = 1.0, density: float = GRAIN_DENSITY,
+                friction: float = GRAIN_FRICTION,
                 size: float | None = None, fit_strain: tuple[float, float] = FIT_STRAIN,
                 packing: DiscPacking | None = None, progress=None, compaction_progress=None) -> BiaxialResult:
     """The full calibration test: frictionless isotropic compaction of ``n`` discs to ``sigma3``
     (Huang sample parameters by default), then :func:`load_biaxial`. ``size`` is the nominal box
     side (default: the Huang 1.25 mm scaled by sqrt(n / 1395)); a given ``packing`` (compacted
-    to ``sigma3`` between walls at 0, W, 0, H) skips the compaction. ``compaction_progress`` is
+    to ``sigma3`` between walls at 0, W, 0, H) skips the compaction. ``k_n`` is the compaction's
+    contact stiffness; the loading uses the packing's (so a given packing keeps its own).
+    ``friction`` and ``ks_over_kn`` are the loading's (compaction is frictionless). ``compaction_progress`` is
     :func:`compact_sample`'s ``progress(cycles, wall_stresses)``, ``progress`` that of
     :func:`load_biaxial`."""
     t0 = time.perf_counter()
@@ -298,11 +303,11 @@ def run_biaxial(n: int = 1395, sigma3: float = SIGMA3, strain_rate: float = STRA
         packing = compact_sample(n, size, r_min, r_max, stress=sigma3, seed=seed, k_n=k_n, density=density,
                                  progress=compaction_progress)
     compaction_seconds = time.perf_counter() - t0
-    res = load_biaxial(packing, sigma3, strain_rate, max_strain, friction=friction, k_n=k_n, density=density,
-                       r_max=r_max, fit_strain=fit_strain, progress=progress)
+    res = load_biaxial(packing, sigma3, strain_rate, max_strain, friction=friction, k_n=packing.contact_stiffness,
+                       ks_over_kn=ks_over_kn, density=density, r_max=r_max, fit_strain=fit_strain, progress=progress)
     res.compaction_seconds = compaction_seconds
     res.packing = packing
-    res.settings = {"seed": seed, "k_n": k_n, "ks_over_kn": 1.0, "friction": friction, "wall_friction": 0.0,
-                    "density": density, "r_min": r_min, "r_max": r_max, "damping": 0.7,
+    res.settings = {"seed": seed, "k_n": packing.contact_stiffness, "ks_over_kn": ks_over_kn, "friction": friction,
+                    "wall_friction": 0.0, "density": density, "r_min": r_min, "r_max": r_max, "damping": 0.7,
                     "compaction_stress_pa": packing.confining_stress}
     return res

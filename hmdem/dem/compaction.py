@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..network.packing import GRAIN_DENSITY, DiscPacking
+from ..network.packing import CONTACT_STIFFNESS, GRAIN_DENSITY, DiscPacking
 from ..yade_env import import_yade
 from .assembly import run_cycles
 from .discs import add_discs, disc_contacts, disc_engines, disc_state
@@ -23,7 +23,8 @@ WALLS = ((0, -1), (0, +1), (1, -1), (1, +1))  # (axis, side): left, right, botto
 
 
 def compact_sample(n: int = 1395, size: float = 1.25e-3, r_min: float = 13.0e-6, r_max: float = 21.6e-6,
-                   stress: float = 0.14e6, seed: int = 0, k_n: float = 7.49e7, density: float = GRAIN_DENSITY,
+                   stress: float = 0.14e6, seed: int = 0, k_n: float = CONTACT_STIFFNESS,
+                   density: float = GRAIN_DENSITY,
                    loose_factor: float = 1.15, tolerance: float = 0.005, max_cycles: int = 400_000,
                    progress=None) -> DiscPacking:
     """Compact n discs to the confining ``stress`` [Pa]; returns the packing with ``fixed`` set.
@@ -101,27 +102,41 @@ def compact_sample(n: int = 1395, size: float = 1.25e-3, r_min: float = 13.0e-6,
     final = wall_stresses()
     O.reset()
     centres = centres - np.array([x[0], x[2]])
-    return DiscPacking(centres, final_radii, contacts, box, seed, fixed=fixed, confining_stress=float(final.mean()))
+    return DiscPacking(centres, final_radii, contacts, box, seed, fixed=fixed, confining_stress=float(final.mean()),
+                       contact_stiffness=k_n)
 
 
 def main(argv=None) -> int:
-    import argparse
     import time
+    from pathlib import Path
 
-    parser = argparse.ArgumentParser(prog="python -m hmdem.dem.compaction",
-                                     description="Servo-compact a disc sample (Huang radial-injection set-up).")
-    parser.add_argument("--out", required=True)
-    parser.add_argument("--n", type=int, default=1395)
-    parser.add_argument("--size", type=float, default=1.25e-3, help="nominal box side [m]")
-    parser.add_argument("--stress", type=float, default=0.14e6, help="confining stress [Pa]")
+    from ..cli import OneLineParser, add_contact_arguments, grain_count, positive_number
+
+    prog = "python -m hmdem.dem.compaction"
+
+    class Parser(OneLineParser):
+        command = prog
+
+    parser = Parser(prog=prog, description="Servo-compact a disc sample (Huang radial-injection set-up).")
+    parser.add_argument("--out", type=Path, required=True, help="packing file to write (.npz)")
+    parser.add_argument("--n", type=grain_count, default=1395, help="number of discs (default %(default)d)")
+    parser.add_argument("--size", type=positive_number, default=1.25e-3, help="nominal box side [m]")
+    parser.add_argument("--stress", type=positive_number, default=0.14e6, help="confining stress [Pa]")
     parser.add_argument("--seed", type=int, default=0)
+    add_contact_arguments(parser, friction=False)  # compaction is frictionless; the runs set mu
     args = parser.parse_args(argv)
+    ancestor = args.out.absolute().parent
+    while not ancestor.exists():
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        parser.error(f"--out: {str(ancestor)!r} is a file, not a directory")
     t0 = time.perf_counter()
-    pk = compact_sample(args.n, args.size, stress=args.stress, seed=args.seed)
+    pk = compact_sample(args.n, args.size, stress=args.stress, seed=args.seed, k_n=args.contact_stiffness)
+    args.out.absolute().parent.mkdir(parents=True, exist_ok=True)
     pk.save(args.out)
     print(f"{len(pk.radii)} discs in {pk.box[0] * 1e3:.4f} x {pk.box[1] * 1e3:.4f} mm, porosity {pk.porosity:.4f}, "
           f"{int(pk.fixed.sum())} fixed boundary grains, wall stress {pk.confining_stress / 1e6:.4f} MPa, "
-          f"{time.perf_counter() - t0:.0f} s -> {args.out}")
+          f"k_n {pk.contact_stiffness:g} N/m, {time.perf_counter() - t0:.0f} s -> {args.out}")
     return 0
 
 

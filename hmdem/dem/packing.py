@@ -12,7 +12,7 @@ import time
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..network.packing import GRAIN_DENSITY, DiscPacking
+from ..network.packing import CONTACT_STIFFNESS, GRAIN_DENSITY, DiscPacking
 from .discs import add_discs, disc_contacts, disc_engines, disc_state
 
 
@@ -52,7 +52,7 @@ def generate_packing(
     spread: float = 0.05,
     porosity: float = 0.117,
     seed: int = 0,
-    k_n: float = 7.49e7,
+    k_n: float = CONTACT_STIFFNESS,
     density: float = GRAIN_DENSITY,
     growth_stages: int = 60,
     cycles_per_stage: int = 300,
@@ -85,7 +85,7 @@ def generate_packing(
     centres, final_radii = disc_state(ids)
     contacts = disc_contacts(ids)
     O.reset()
-    return DiscPacking(centres, final_radii, contacts, tuple(box), seed)
+    return DiscPacking(centres, final_radii, contacts, tuple(box), seed, contact_stiffness=k_n)
 
 
 def main(argv=None) -> int:

@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 GRAIN_DENSITY = 2650.0  # kg/m^3 of the grains (quartz sand, seed 004 Table 3)
+CONTACT_STIFFNESS = 7.49e7  # k_n = k_s of the Huang contacts [N/m per m of depth] (seed 004 Table 2)
+GRAIN_FRICTION = 0.6  # Coulomb coefficient of the grain contacts (Table 2); walls are frictionless
 
 
 @dataclass
@@ -14,7 +16,9 @@ class DiscPacking:
     """A 2D packing: centres (n, 2) m, radii (n,) m, contacts (k, 2), box (W, H) m.
 
     ``fixed`` (n,) marks boundary grains held in place in coupled runs (empty: none);
-    ``confining_stress`` [Pa] is the wall stress the sample was compacted to (0: not servoed).
+    ``confining_stress`` [Pa] is the wall stress the sample was compacted to (0: not servoed);
+    ``contact_stiffness`` [N/m per m of depth] the k_n it was compacted with, which the overlaps
+    need to give back that stress (files written before it was stored: Table 2's).
     """
 
     centres: np.ndarray
@@ -24,6 +28,7 @@ class DiscPacking:
     seed: int = 0
     fixed: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     confining_stress: float = 0.0
+    contact_stiffness: float = CONTACT_STIFFNESS
 
     @property
     def porosity(self) -> float:
@@ -32,11 +37,12 @@ class DiscPacking:
     def save(self, path) -> None:
         np.savez_compressed(path, centres=self.centres, radii=self.radii, contacts=self.contacts,
                             box=np.asarray(self.box), seed=self.seed, fixed=np.asarray(self.fixed, bool),
-                            confining_stress=self.confining_stress)
+                            confining_stress=self.confining_stress, contact_stiffness=self.contact_stiffness)
 
     @classmethod
     def load(cls, path) -> "DiscPacking":
         with np.load(path) as f:
             fixed = f["fixed"] if "fixed" in f.files else np.zeros(0, bool)
             stress = float(f["confining_stress"]) if "confining_stress" in f.files else 0.0
-            return cls(f["centres"], f["radii"], f["contacts"], tuple(f["box"]), int(f["seed"]), fixed, stress)
+            k_n = float(f["contact_stiffness"]) if "contact_stiffness" in f.files else CONTACT_STIFFNESS
+            return cls(f["centres"], f["radii"], f["contacts"], tuple(f["box"]), int(f["seed"]), fixed, stress, k_n)
