@@ -80,7 +80,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                  "Huang sample)")
     da.add_argument("--n", type=grain_count, default=1395, help="discs of the compacted samples (default 1395)")
     da.add_argument("--seed", type=non_negative_int, default=0, help="packing seed (default 0)")
-    add_contact_arguments(da, friction=False)  # the compactions' k_n; apertures follow from the forces
+    add_contact_arguments(da, friction=False)  # the sweep's compactions; a stored packing keeps its own k_n
     da.add_argument("--contact-gap", type=non_negative_number, default=NEAR_CONTACT_GAP,
                     help="grain pairs closer than this fraction of the smaller radius are pipes (default %(default)g, "
                          "the coupled runs'; 0.38 gives the paper's network counts: decisions #73)")
@@ -283,6 +283,7 @@ def run_darcy_command(args, argv) -> int:
         r["ratio_to_kozeny_carman"] = r["permeability"] / r["kozeny_carman"]
     stored_row = stored.row()
     stored_row["path"] = str(path)
+    stored_row["contact_stiffness_n_per_m"] = packing.contact_stiffness  # the file's, not --contact-stiffness
     stored_row["relative_error_vs_paper"] = (stored.permeability - PAPER_PERMEABILITY) / PAPER_PERMEABILITY
     stored_row["ratio_to_kozeny_carman"] = stored.permeability / stored.kozeny_carman
     at_paper = [r for r in rows if abs(r["target_stress"] - PAPER_STRESS) <= 1e-9 * PAPER_STRESS]
@@ -300,7 +301,7 @@ def run_darcy_command(args, argv) -> int:
         "aperture_law": {"residual_aperture_m": law.residual_aperture, "half_aperture_force_n_per_m":
                          law.half_aperture_force, "fracture_multiplier": law.fracture_multiplier},
         "contact_gap": args.contact_gap,
-        "contact_stiffness_n_per_m": args.contact_stiffness,
+        "contact_stiffness_n_per_m": args.contact_stiffness,  # of the sweep's compactions
         "definition": "k = eta L Q / (H dP); L = distance between the mean centroids of the inflow and outflow "
                       "domains, H = y extent of the grain centres; Kozeny-Carman with d = mean diameter and the "
                       "Eq. 22 3D porosity of the box-area 2D porosity",

@@ -83,8 +83,8 @@ def add_contact_arguments(parser: argparse.ArgumentParser, *, stiffness: bool = 
                             help="normal contact stiffness k_n [N/m per m of depth] (default %(default)g, Table 2)")
     if friction:
         parser.add_argument("--friction", type=non_negative_number, default=GRAIN_FRICTION,
-                            help="Coulomb friction coefficient of the grain contacts (default %(default)g, Table 2; "
-                                 "walls stay frictionless)")
+                            help="Coulomb friction coefficient of the grain-grain contacts (default %(default)g, "
+                                 "Table 2)")
         parser.add_argument("--stiffness-ratio", type=positive_number, default=1.0,
                             help="shear over normal contact stiffness k_s / k_n (default %(default)g, Table 2)")
 
@@ -117,12 +117,18 @@ def new_run_directory(out: Path | None, name: str) -> Path:
     out = out or Path("runs") / f"{name}-{time.strftime('%Y%m%d-%H%M%S')}"
     if out.exists():
         raise InputError(f"--out: {str(out)!r} already exists; choose a new run directory")
-    ancestor = out.absolute().parent
+    check_out_parent(out)
+    return out
+
+
+def check_out_parent(out: Path) -> None:
+    """An :class:`InputError` when ``--out`` would go through a file (its missing directories
+    are made when the results are written)."""
+    ancestor = Path(out).absolute().parent
     while not ancestor.exists():
         ancestor = ancestor.parent
     if not ancestor.is_dir():
         raise InputError(f"--out: {str(ancestor)!r} is a file, not a directory")
-    return out
 
 
 def read_packing(path: Path):

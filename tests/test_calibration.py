@@ -180,6 +180,8 @@ def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, monkeypatch, cap
     (["--n", "3"], "--n"),
     (["--stress", "0"], "--stress"),
     (["--out", "a_file/p.npz"], "--out"),
+    (["--out", "p"], "--out"),  # numpy would write p.npz
+    (["--seed", "-1"], "--seed"),
 ])
 def test_compaction_bad_input_is_one_line_exit_2_nothing_written(tmp_path, monkeypatch, capsys, args, flag):
     from hmdem.dem.compaction import main as compaction_main
@@ -193,6 +195,31 @@ def test_compaction_bad_input_is_one_line_exit_2_nothing_written(tmp_path, monke
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(f"python -m hmdem.dem.compaction: {flag}: ")
     assert [p.name for p in tmp_path.iterdir()] == ["a_file"]
+
+
+class _Called(Exception):
+    """Stops a command at the function under test, with the arguments it was given."""
+
+
+def test_contact_flags_reach_the_biaxial_and_darcy_tests(tmp_path, monkeypatch):
+    # decisions #74: the flags arrive as the tests' keyword arguments (no YADE run here)
+    import hmdem.coupling.darcy as darcy
+    import hmdem.dem.biaxial as biaxial
+
+    def stop(*args, **kwargs):
+        raise _Called(kwargs)
+
+    monkeypatch.setattr(biaxial, "run_biaxial", stop)
+    monkeypatch.setattr(darcy, "permeability_sweep", stop)
+    with pytest.raises(_Called) as call:
+        main(["biaxial", "--contact-stiffness", "8.9e7", "--friction", "0.85", "--stiffness-ratio", "2",
+              "--out", str(tmp_path / "bi"), "--quiet"])
+    kwargs = call.value.args[0]
+    assert (kwargs["k_n"], kwargs["friction"], kwargs["ks_over_kn"]) == (8.9e7, 0.85, 2.0)
+    with pytest.raises(_Called) as call:
+        main(["darcy", "--contact-stiffness", "8.9e7", "--out", str(tmp_path / "da"), "--quiet"])
+    assert call.value.args[0]["k_n"] == 8.9e7
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_existing_run_directory_is_refused(tmp_path, capsys):

@@ -35,11 +35,6 @@ def test_a_stiffer_sample_keeps_its_stress_and_runs_with_its_own_stiffness(small
     from hmdem.dem.compaction import compact_sample
     from hmdem.network.packing import CONTACT_STIFFNESS, DiscPacking
 
-    def contact_stress(pk, grains):
-        pairs, force = grains.contact_forces()
-        branch = np.linalg.norm(pk.centres[pairs[:, 0]] - pk.centres[pairs[:, 1]], axis=1)
-        return float(np.sum(force * branch)) / (2.0 * pk.box[0] * pk.box[1]), pairs, force, branch
-
     stiff = compact_sample(n=150, size=0.41e-3, seed=1, k_n=2 * CONTACT_STIFFNESS)
     stiff.save(tmp_path / "stiff.npz")
     stiff = DiscPacking.load(tmp_path / "stiff.npz")
@@ -49,17 +44,20 @@ def test_a_stiffer_sample_keeps_its_stress_and_runs_with_its_own_stiffness(small
     assert (grains.k_n, grains.k_s, grains.friction) == (2 * CONTACT_STIFFNESS, CONTACT_STIFFNESS, 0.8)
     material = grains._O.bodies[grains.ids[0]].material
     assert material.frictionAngle == pytest.approx(np.arctan(0.8), rel=1e-12) and material.poisson == 0.5
-    # before the settling cycles: the stored overlaps, at the stored k_n
-    from hmdem.dem.assembly import DiscAssembly
+    # before the settling cycles: the stored overlaps, read as the Darcy calibration reads them
+    from hmdem.coupling.darcy import packing_contact_forces
+    from hmdem.network.contact_graph import find_contacts
 
     def loaded(pk):
-        g = DiscAssembly(pk.centres, pk.radii, k_n=pk.contact_stiffness, fixed=pk.fixed)
-        g.run(1)
-        return contact_stress(pk, g)
+        pairs = find_contacts(pk.centres, pk.radii, tolerance=0.0)
+        force = packing_contact_forces(pk, pairs)
+        branch = np.linalg.norm(pk.centres[pairs[:, 0]] - pk.centres[pairs[:, 1]], axis=1)
+        stress = float(np.sum(force * branch)) / (2.0 * pk.box[0] * pk.box[1])
+        return stress, pairs, force, branch
 
     stress_stiff, pairs, force, branch = loaded(stiff)
     overlap = stiff.radii[pairs].sum(axis=1) - branch
-    np.testing.assert_allclose(force, 2 * CONTACT_STIFFNESS * overlap, rtol=1e-6)
+    np.testing.assert_allclose(force, 2 * CONTACT_STIFFNESS * np.maximum(overlap, 0.0), rtol=1e-6, atol=1e-9)
     stress_soft, soft_pairs, _, soft_branch = loaded(small_sample)
     soft_overlap = small_sample.radii[soft_pairs].sum(axis=1) - soft_branch
     assert stress_stiff == pytest.approx(stress_soft, rel=0.02)
@@ -277,17 +275,19 @@ def test_yade_batch_runs_the_radial_script(tmp_path):
     script = Path(__file__).resolve().parent.parent / "yade_scripts" / "radial_injection.py"
     table = tmp_path / "short.table"
     # friction: -1 leaves Table 2's 0.6, and 0 (frictionless grains) is a value, not "unset"
-    table.write_text("description case oneWay maxSteps fixedPort grainDensity friction\n"
-                     "two_way 'B3' 0 2 0 0 -1\none_way 'B3' 1 2 1 5300 0\n")
+    table.write_text("description case oneWay maxSteps fixedPort grainDensity friction stiffnessRatio\n"
+                     "two_way 'B3' 0 2 0 0 -1 0\none_way 'B3' 1 2 1 5300 0 0.5\n")
     proc = subprocess.run(["yade-batch", "--job-threads", "1", "-j", "2", "--log", str(tmp_path / "@.log"),
                            str(table), str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stdout[-2000:]
-    for name, one_way, density, friction in (("two_way", False, 2650.0, 0.6), ("one_way", True, 5300.0, 0.0)):
+    for name, one_way, density, friction, ratio in (("two_way", False, 2650.0, 0.6, 1.0),
+                                                    ("one_way", True, 5300.0, 0.0, 0.5)):
         summary = json.loads((tmp_path / "runs" / "batch" / name / "summary.json").read_text())
         assert summary["case"] == "B3" and summary["steps"] == 2 and summary["one_way"] is one_way
         assert summary["fixed_port"] is one_way  # the second row holds the port too
         config = tomllib.loads((tmp_path / "runs" / "batch" / name / "config.toml").read_text())
         assert config["dem"]["grain_density_kg_m3"] == density and config["dem"]["friction"] == friction
+        assert config["dem"]["stiffness_ratio"] == ratio
         # the command recorded is the one the script ran, not yade's own command line
         assert config["run"]["command"].startswith("python -m hmdem.hele_shaw radial --case B3")
 

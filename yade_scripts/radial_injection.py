@@ -5,8 +5,8 @@
 
 Parameters (``readParamsFromTable``; defaults in brackets): case [A1], oneWay [0], maxSteps
 [0 = to breakthrough], dt [0 = the case's], grainDensity [0 = 2650 kg/m^3, Table 3], fixedPort
-[0; 1 holds the injection domain's grains], friction [-1 = 0.6, Table 2], packing ["" = the
-shipped sample; its k_n comes with it], out [runs/batch/<job description>, or a fresh
+[0; 1 holds the injection domain's grains], friction [-1 = 0.6, Table 2], stiffnessRatio
+[0 = 1, Table 2], packing ['' = the shipped sample; a path in quotes, its k_n comes with it], out [runs/batch/<job description>, or a fresh
 runs/<case>-<time> outside a batch]. The run is exactly ``python -m hmdem.hele_shaw radial``
 with those flags; its run directory is the same. The yade launcher runs Debian's Python, so the
 repository root goes on sys.path first and the project venv's pure-Python packages (meshio,
@@ -23,7 +23,7 @@ sys.path.extend(str(p) for p in sorted((ROOT / ".venv" / "lib").glob("python3*/s
 from yade import O, utils  # noqa: E402
 
 utils.readParamsFromTable(case="A1", oneWay=0, maxSteps=0, dt=0.0, grainDensity=0.0, fixedPort=0, friction=-1.0,
-                          packing="", out="", noTableOk=True)
+                          stiffnessRatio=0.0, packing="", out="", noTableOk=True)
 from yade.params import table  # noqa: E402
 
 from hmdem.hele_shaw import main  # noqa: E402
@@ -39,8 +39,10 @@ if table.grainDensity:
     argv += ["--grain-density", str(table.grainDensity)]
 if table.fixedPort:
     argv.append("--fixed-port")
-if table.friction >= 0:  # 0 is a valid coefficient, so "unset" is negative
+if table.friction != -1:  # 0 is a valid coefficient, so "unset" is -1; other values go to the CLI's check
     argv += ["--friction", str(table.friction)]
+if table.stiffnessRatio:
+    argv += ["--stiffness-ratio", str(table.stiffnessRatio)]
 if table.packing:
     argv += ["--packing", table.packing]
 description = O.tags["description"] if "description" in O.tags.keys() else ""

@@ -34,7 +34,8 @@ class DiscAssembly:
     restores = 0  # rewinds by restore_state
 
     def __init__(self, centres: np.ndarray, radii: np.ndarray, *, k_n: float = CONTACT_STIFFNESS,
-                 ks_over_kn: float = 1.0, friction: float = GRAIN_FRICTION, density: float = GRAIN_DENSITY, damping: float = 0.7,
+                 ks_over_kn: float = 1.0, friction: float = GRAIN_FRICTION, density: float = GRAIN_DENSITY,
+                 damping: float = 0.7,
                  fixed: np.ndarray | None = None, timestep_safety: float = 0.5, threads: int | None = None):
         import_yade(threads)
         from yade import O, utils

@@ -110,7 +110,8 @@ def main(argv=None) -> int:
     import time
     from pathlib import Path
 
-    from ..cli import OneLineParser, add_contact_arguments, grain_count, positive_number
+    from ..cli import (InputError, OneLineParser, add_contact_arguments, check_out_parent, grain_count,
+                       non_negative_int, positive_number)
 
     prog = "python -m hmdem.dem.compaction"
 
@@ -118,18 +119,22 @@ def main(argv=None) -> int:
         command = prog
 
     parser = Parser(prog=prog, description="Servo-compact a disc sample (Huang radial-injection set-up).")
-    parser.add_argument("--out", type=Path, required=True, help="packing file to write (.npz)")
+    parser.add_argument("--out", type=Path, required=True, help="packing file to write, ending in .npz")
     parser.add_argument("--n", type=grain_count, default=1395, help="number of discs (default %(default)d)")
-    parser.add_argument("--size", type=positive_number, default=1.25e-3, help="nominal box side [m]")
-    parser.add_argument("--stress", type=positive_number, default=0.14e6, help="confining stress [Pa]")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--size", type=positive_number, default=1.25e-3,
+                        help="nominal box side [m] (default %(default)g; the final box follows from the stress)")
+    parser.add_argument("--stress", type=positive_number, default=0.14e6,
+                        help="confining stress [Pa] (default %(default)g, the Huang sample's)")
+    parser.add_argument("--seed", type=non_negative_int, default=0, help="seed of the radii and the seeding "
+                                                                          "(default %(default)d)")
     add_contact_arguments(parser, friction=False)  # compaction is frictionless; the runs set mu
     args = parser.parse_args(argv)
-    ancestor = args.out.absolute().parent
-    while not ancestor.exists():
-        ancestor = ancestor.parent
-    if not ancestor.is_dir():
-        parser.error(f"--out: {str(ancestor)!r} is a file, not a directory")
+    if args.out.suffix != ".npz":  # numpy would append it, and the file would not be the one named
+        parser.error(f"--out: must end in .npz, got {str(args.out)!r}")
+    try:
+        check_out_parent(args.out)
+    except InputError as exc:
+        parser.error(str(exc))
     t0 = time.perf_counter()
     pk = compact_sample(args.n, args.size, stress=args.stress, seed=args.seed, k_n=args.contact_stiffness)
     args.out.absolute().parent.mkdir(parents=True, exist_ok=True)
