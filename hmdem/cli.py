@@ -11,6 +11,7 @@ import sys
 import time
 from pathlib import Path
 
+from .network.packing import CONTACT_STIFFNESS, GRAIN_FRICTION
 from .rundir import RunDirectoryTaken
 
 
@@ -76,8 +77,6 @@ def add_contact_arguments(parser: argparse.ArgumentParser, *, stiffness: bool = 
     """The grain-contact parameters of the Huang sample (seed 004 Table 2), shared by the commands
     that build it: ``--contact-stiffness`` (k_n), ``--friction`` (mu) and ``--stiffness-ratio``
     (k_s / k_n). Table 2's values are the defaults; the biaxial test calibrates them (digest §2.3)."""
-    from .network.packing import CONTACT_STIFFNESS, GRAIN_FRICTION
-
     if stiffness:
         parser.add_argument("--contact-stiffness", type=positive_number, default=CONTACT_STIFFNESS,
                             help="normal contact stiffness k_n [N/m per m of depth] (default %(default)g, Table 2)")

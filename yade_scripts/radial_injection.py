@@ -7,10 +7,11 @@ Parameters (``readParamsFromTable``; defaults in brackets): case [A1], oneWay [0
 [0 = to breakthrough], dt [0 = the case's], grainDensity [0 = 2650 kg/m^3, Table 3], fixedPort
 [0; 1 holds the injection domain's grains], friction [-1 = 0.6, Table 2], stiffnessRatio
 [0 = 1, Table 2], packing ['' = the shipped sample; a path in quotes, its k_n comes with it],
-out [runs/batch/<job description>, or a fresh runs/<case>-<time> outside a batch]. The run is exactly ``python -m hmdem.hele_shaw radial``
-with those flags; its run directory is the same. The yade launcher runs Debian's Python, so the
-repository root goes on sys.path first and the project venv's pure-Python packages (meshio,
-tqdm) last, behind Debian's numpy that YADE has already loaded.
+out [runs/batch/<job description>, or a fresh runs/<case>-<time> outside a batch]. The run is
+exactly ``python -m hmdem.hele_shaw radial`` with those flags; its run directory is the same.
+The yade launcher runs Debian's Python, so the repository root goes on sys.path first and the
+project venv's pure-Python packages (meshio, tqdm) last, behind Debian's numpy that YADE has
+already loaded.
 """
 import sys
 from pathlib import Path

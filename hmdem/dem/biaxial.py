@@ -212,7 +212,7 @@ class _Walls:
 
 
 def load_biaxial(pk: DiscPacking, sigma3: float = SIGMA3, strain_rate: float = STRAIN_RATE,
-                 max_strain: float = MAX_STRAIN, *, friction: float = GRAIN_FRICTION, k_n: float | None = None,
+                 max_strain: float = MAX_STRAIN, *, friction: float = GRAIN_FRICTION,
                  ks_over_kn: float = 1.0, density: float = GRAIN_DENSITY, damping: float = 0.7, r_max: float = 21.6e-6,
                  fit_strain: tuple[float, float] = FIT_STRAIN, chunk: int = CHUNK, progress=None) -> BiaxialResult:
     """Shear a compacted packing (walls at 0, W, 0, H, as :func:`compact_sample` returns it).
@@ -223,15 +223,14 @@ def load_biaxial(pk: DiscPacking, sigma3: float = SIGMA3, strain_rate: float = S
     ``sigma3 H`` with H the current sample height, refreshed every chunk. Its equation of
     motion is the servo: the wall moves until the grain force balances the load, so sigma3 is
     held without the steady-state lag of a proportional velocity servo.
-    ``k_n`` defaults to the packing's own (the one its overlaps were compacted with).
+    k_n is the packing's own (the one its overlaps were compacted with).
     ``progress(eps_a, sigma1, sigma3)`` is called every chunk.
     """
     import_yade()
     from yade import O
 
-    k_n = pk.contact_stiffness if k_n is None else k_n
-    ids, wall_ids = walled_scene(pk, k_n=k_n, friction=friction, density=density, damping=damping, r_max=r_max,
-                                 ks_over_kn=ks_over_kn)
+    ids, wall_ids = walled_scene(pk, k_n=pk.contact_stiffness, friction=friction, density=density, damping=damping,
+                                 r_max=r_max, ks_over_kn=ks_over_kn)
     walls = _Walls(O, wall_ids)
     dt = float(O.dt)
     w0, h0 = walls.sizes()
@@ -303,8 +302,8 @@ def run_biaxial(n: int = 1395, sigma3: float = SIGMA3, strain_rate: float = STRA
         packing = compact_sample(n, size, r_min, r_max, stress=sigma3, seed=seed, k_n=k_n, density=density,
                                  progress=compaction_progress)
     compaction_seconds = time.perf_counter() - t0
-    res = load_biaxial(packing, sigma3, strain_rate, max_strain, friction=friction, k_n=packing.contact_stiffness,
-                       ks_over_kn=ks_over_kn, density=density, r_max=r_max, fit_strain=fit_strain, progress=progress)
+    res = load_biaxial(packing, sigma3, strain_rate, max_strain, friction=friction, ks_over_kn=ks_over_kn,
+                       density=density, r_max=r_max, fit_strain=fit_strain, progress=progress)
     res.compaction_seconds = compaction_seconds
     res.packing = packing
     res.settings = {"seed": seed, "k_n": packing.contact_stiffness, "ks_over_kn": ks_over_kn, "friction": friction,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -45,6 +46,6 @@ class DiscPacking:
             fixed = f["fixed"] if "fixed" in f.files else np.zeros(0, bool)
             stress = float(f["confining_stress"]) if "confining_stress" in f.files else 0.0
             k_n = float(f["contact_stiffness"]) if "contact_stiffness" in f.files else CONTACT_STIFFNESS
-            if not k_n > 0.0 or k_n == float("inf"):
+            if not (math.isfinite(k_n) and k_n > 0.0):
                 raise ValueError(f"contact_stiffness must be a finite number > 0, got {k_n}")
             return cls(f["centres"], f["radii"], f["contacts"], tuple(f["box"]), int(f["seed"]), fixed, stress, k_n)
