@@ -9,7 +9,9 @@ E, nu, peak sigma1 and the Mohr-Coulomb friction angle against the paper's 65.4 
 309.6 kPa and 30.8 deg. darcy: network Darcy permeability after compaction to each confining
 stress, with Kozeny-Carman, and of a stored packing (default: the shipped Huang sample) against
 the paper's 7.43e-13 m^2 at 0.14 MPa. Each writes a run directory atomically (summary.json, a
-CSV and a PNG); bad input is one line on stderr, exit status 2, nothing written.
+CSV and a PNG); bad input is one line on stderr, exit status 2, nothing written. Ctrl-C or
+SIGTERM writes what is done with status "interrupted" (exit 130 or 143): the Darcy stresses
+finished, or the biaxial curve so far.
 """
 
 from __future__ import annotations
@@ -23,10 +25,10 @@ import time
 from pathlib import Path
 
 from . import __version__
-from .cli import (InputError, OneLineParser, add_contact_arguments, grain_count, new_run_directory,
+from .cli import (OneLineParser, add_contact_arguments, dispatch, grain_count, interrupted_status, new_run_directory,
                   non_negative_int, non_negative_number, number_in, positive_number, read_packing)
 from .network.contact_graph import NEAR_CONTACT_GAP
-from .rundir import RunDirectoryTaken, atomic_run_directory
+from .rundir import atomic_run_directory
 from .rundir import write_json as write_strict_json
 
 PROG = "python -m hmdem.calibrate"
@@ -103,43 +105,30 @@ class _BiaxialProgress:
     """tqdm bars: compaction (cycles, wall stress) then loading (axial strain)."""
 
     def __init__(self, max_strain: float, every_s: float = 0.25):
-        from tqdm import tqdm
+        from .dem.compaction import CompactionBar
 
-        self.tqdm, self.max_strain, self.every_s, self.last = tqdm, max_strain, every_s, 0.0
-        self.compaction = None
+        self.max_strain, self.every_s, self.last = max_strain, every_s, 0.0
+        self.compact = CompactionBar(every_s)
         self.loading = None
 
-    def _due(self) -> bool:
-        now = time.perf_counter()
-        if now - self.last < self.every_s:
-            return False
-        self.last = now
-        return True
-
-    def compact(self, cycles, stresses):
-        if self.compaction is None:
-            self.compaction = self.tqdm(desc="compaction", unit=" cycles", file=sys.stderr,
-                                        bar_format="{desc}: {n} cycles [{elapsed}] {postfix}")
-        if self._due():
-            self.compaction.n = cycles
-            self.compaction.set_postfix_str(f"wall stress {stresses.mean() / 1e3:.1f} kPa")
-
     def load(self, ea, s1, s3):
+        from tqdm import tqdm
+
         if self.loading is None:
-            if self.compaction is not None:
-                self.compaction.close()
-            self.loading = self.tqdm(total=round(100 * self.max_strain, 3), unit="%", desc="loading",
-                                     file=sys.stderr, bar_format="{desc}: {n:.2f}/{total:.2f} %|{bar}| "
-                                                                 "[{elapsed}<{remaining}] {postfix}")
-        if self._due() or ea >= self.max_strain:
+            self.compact.close()
+            self.loading = tqdm(total=round(100 * self.max_strain, 3), unit="%", desc="loading", file=sys.stderr,
+                                bar_format="{desc}: {n:.2f}/{total:.2f} %|{bar}| [{elapsed}<{remaining}] {postfix}")
+        now = time.perf_counter()
+        if now - self.last >= self.every_s or ea >= self.max_strain:
+            self.last = now
             self.loading.n = round(100 * min(ea, self.max_strain), 3)
             self.loading.set_postfix_str(f"sigma1 {s1 / 1e3:.1f} kPa, sigma3 {s3 / 1e3:.1f} kPa")
 
     def close(self):
-        for bar in (self.compaction, self.loading):
-            if bar is not None:
-                bar.close()
-        self.compaction = self.loading = None
+        self.compact.close()
+        if self.loading is not None:
+            self.loading.close()
+            self.loading = None
 
 
 def plot_biaxial(path: Path, res) -> None:
@@ -187,13 +176,16 @@ def run_biaxial_command(args, argv) -> int:
     if bar is not None:
         bar.close()
     summary = res.summary()
-    if args.rate_check:
+    if args.rate_check and res.status == "finished":
         half = load_biaxial(res.packing, args.sigma3, 0.5 * args.strain_rate, args.max_strain,
                             friction=args.friction, ks_over_kn=args.stiffness_ratio,
                             progress=None if bar is None else bar.load)
         if bar is not None:
             bar.close()
+        summary["status"] = half.status
         summary["rate_check"] = {
+            "status": half.status,
+            "max_axial_strain": float(half.strain_axial[-1]) if len(half.strain_axial) else float("nan"),
             "strain_rate_per_s": half.strain_rate,
             "peak_sigma1_pa": half.peak_sigma1,
             "young_modulus_pa": half.young_modulus,
@@ -216,6 +208,10 @@ def run_biaxial_command(args, argv) -> int:
                            res.sigma1, res.sigma3, res.deviator):
                 w.writerow([int(row[0])] + [f"{v:.9g}" for v in row[1:]])
         plot_biaxial(tmp / "biaxial.png", res)
+    if summary["status"] == "interrupted":
+        print(f"{PROG}: interrupted at axial strain {summary['max_axial_strain']:.3%}"
+              f"{' (the half-rate check)' if 'rate_check' in summary else ''}; the curve so far and what it gives "
+              f"(NaN where it did not get far enough) are in {out}", file=sys.stderr)
     err = summary["relative_errors"]
     print(f"E = {res.young_modulus / 1e6:.2f} MPa ({err['young_modulus_pa']:+.1%} vs 65.4), "
           f"nu = {res.poisson_ratio:.3f} ({err['poisson_ratio']:+.1%} vs 0.102), "
@@ -225,7 +221,7 @@ def run_biaxial_command(args, argv) -> int:
     if "rate_check" in summary:
         print(f"half strain rate: peak sigma1 changes by {summary['rate_check']['peak_relative_change']:+.2%}")
     print(f"run directory: {out} ({summary['wall_seconds']:.0f} s)")
-    return 0
+    return interrupted_status() if summary["status"] == "interrupted" else 0
 
 
 # ----------------------------------------------------------------------------------------- darcy
@@ -269,14 +265,23 @@ def run_darcy_command(args, argv) -> int:
     t0 = time.perf_counter()
     law = ApertureLaw()
 
+    sweep = []  # the stresses done, kept as they finish
+
     def say(k, stress, res):
+        sweep.append(res)
         if not args.quiet:
             print(f"[{k + 1}/{len(args.stresses)}] {stress / 1e6:g} MPa: k = {res.permeability:.4g} m^2, "
                   f"KC = {res.kozeny_carman:.4g} m^2, porosity {res.porosity_2d:.4f}, "
                   f"{res.extra['seconds']:.0f} s", file=sys.stderr, flush=True)
 
-    sweep = permeability_sweep(args.stresses, args.n, args.seed, size=1.25e-3 * math.sqrt(args.n / 1395.0),
-                               k_n=args.contact_stiffness, law=law, contact_gap=args.contact_gap, progress=say)
+    status = "finished"
+    try:
+        permeability_sweep(args.stresses, args.n, args.seed, size=1.25e-3 * math.sqrt(args.n / 1395.0),
+                           k_n=args.contact_stiffness, law=law, contact_gap=args.contact_gap, progress=say)
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the stresses done, and the stored packing (no DEM)
+        status = "interrupted"
+        print(f"{PROG}: interrupted after {len(sweep)} of {len(args.stresses)} stresses; writing those",
+              file=sys.stderr)
     stored = packing_permeability(packing, law, args.contact_gap)
     rows = [r.row() for r in sweep]
     for r in rows:
@@ -288,6 +293,7 @@ def run_darcy_command(args, argv) -> int:
     stored_row["ratio_to_kozeny_carman"] = stored.permeability / stored.kozeny_carman
     at_paper = [r for r in rows if abs(r["target_stress"] - PAPER_STRESS) <= 1e-9 * PAPER_STRESS]
     summary = {
+        "status": status,
         "stresses_pa": list(args.stresses),
         "n_grains": args.n,
         "seed": args.seed,
@@ -324,7 +330,7 @@ def run_darcy_command(args, argv) -> int:
     print(f"stored packing ({stored.confining_stress / 1e6:.3f} MPa): k = {stored.permeability:.3e} m^2, "
           f"{stored_row['relative_error_vs_paper']:+.1%} vs the paper's 7.43e-13")
     print(f"run directory: {out} ({summary['wall_seconds']:.0f} s)")
-    return 0
+    return interrupted_status() if status == "interrupted" else 0
 
 
 def _fmt(v) -> str:
@@ -339,16 +345,8 @@ def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     args = parser.parse_args(argv)
-    try:
-        if args.command == "biaxial":
-            return run_biaxial_command(args, argv)
-        if args.command == "darcy":
-            return run_darcy_command(args, argv)
-    except (InputError, RunDirectoryTaken) as exc:
-        print(f"{PROG}: {exc}", file=sys.stderr)
-        return 2
-    parser.print_usage(sys.stderr)
-    return 2
+    return dispatch(PROG, parser, args, {"biaxial": lambda a: run_biaxial_command(a, argv),
+                                         "darcy": lambda a: run_darcy_command(a, argv)})
 
 
 if __name__ == "__main__":

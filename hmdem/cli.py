@@ -88,15 +88,32 @@ def add_contact_arguments(parser: argparse.ArgumentParser, *, stiffness: bool = 
                             help="shear over normal contact stiffness k_s / k_n (default %(default)g, Table 2)")
 
 
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt
+_last_interrupt = {"signal": signal.SIGINT}  # the signal that stopped the command, for its exit status
+
+
+def record_interrupt(signum: int) -> None:
+    """Remember the signal that is stopping the command (a handler calls this before it stops it)."""
+    _last_interrupt["signal"] = signum
+
+
+def _terminate(signum, frame):
+    record_interrupt(signum)
+    raise KeyboardInterrupt  # SIGTERM stops a run where Ctrl-C would, with the same partial results
+
+
+def interrupted_status() -> int:
+    """Exit status of an interrupted command, the shell's 128 + the signal: 130 after Ctrl-C
+    (SIGINT), 143 after a batch system's SIGTERM."""
+    return 128 + int(_last_interrupt["signal"])
 
 
 def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -> int:
     """Run ``commands[args.command](args)``: a batch system's SIGTERM (or kill) ends it like
-    Ctrl-C, an :class:`InputError` is one line on stderr and exit status 2, and so is an ``--out``
-    that another process took during the run (:class:`~hmdem.rundir.RunDirectoryTaken`)."""
-    signal.signal(signal.SIGTERM, _interrupt)
+    Ctrl-C (exit status :func:`interrupted_status`), an :class:`InputError` is one line on stderr
+    and exit status 2, and so is an ``--out`` that another process took during the run
+    (:class:`~hmdem.rundir.RunDirectoryTaken`)."""
+    _last_interrupt["signal"] = signal.SIGINT
+    signal.signal(signal.SIGTERM, _terminate)
     try:
         if args.command in commands:
             return commands[args.command](args)
@@ -104,8 +121,8 @@ def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -
         print(f"{prog}: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:  # a run's time steps catch their own; this one came outside them
-        print(f"{prog}: interrupted outside a run's time steps; no run directory was finished", file=sys.stderr)
-        return 130
+        print(f"{prog}: interrupted before any results; nothing was written", file=sys.stderr)
+        return interrupted_status()
     parser.print_help()
     return 2
 

@@ -15,8 +15,8 @@ from pathlib import Path
 
 from . import __version__
 from .cases import CASES
-from .cli import (InputError, OneLineParser, add_contact_arguments, dispatch, local_damping, new_run_directory,
-                  non_negative_int, non_negative_number, positive_int, positive_number, read_packing)
+from .cli import (InputError, OneLineParser, add_contact_arguments, dispatch, interrupted_status, local_damping,
+                  new_run_directory, non_negative_int, non_negative_number, positive_int, positive_number, read_packing)
 from .flow.fluids import WEAK_COMPRESSION
 from .network.contact_graph import NEAR_CONTACT_GAP
 from .network.packing import GRAIN_DENSITY
@@ -236,15 +236,15 @@ def each_step(*callbacks):
 
 
 def finish(rec, summary: dict) -> int:
-    """Warnings, then the exit status: 0 for a finished run, 130 if interrupted, 1 if it could
-    not go on (reason on stderr)."""
+    """Warnings, then the exit status: 0 for a finished run, 130 (Ctrl-C) or 143 (SIGTERM) if
+    interrupted, 1 if it could not go on (reason on stderr)."""
     if not summary["weakly_compressible"]:
         print(f"{PROG}: warning: a domain's pressure reached {summary['peak_compression']:.2g} of its fluid's bulk "
               f"modulus; a constant K is accurate only up to p/K = {WEAK_COMPRESSION}", file=sys.stderr)
     if rec.status == "diverged":
         print(f"{PROG}: {rec.message}", file=sys.stderr)
         return 1
-    return 130 if rec.status == "interrupted" else 0
+    return interrupted_status() if rec.status == "interrupted" else 0
 
 
 # radial flags that override a CouplingSetup field (case defaults included) when given

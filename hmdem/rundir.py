@@ -62,6 +62,15 @@ class RunDirectoryTaken(OSError):
     kept under a sibling name, which the message gives."""
 
 
+def umask_mode(base: int) -> int:
+    """``base`` (0o777 for a directory, 0o666 for a file) under the process's umask: the mode
+    ``mkdir`` or ``open`` would give. ``mkdtemp`` and ``mkstemp`` make private 0o700 / 0o600
+    entries, which would hide a run from the rest of a research group."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return base & ~mask
+
+
 @contextmanager
 def atomic_run_directory(final: Path):
     """Yield a temporary sibling directory; rename it to ``final`` when the block completes.
@@ -72,6 +81,7 @@ def atomic_run_directory(final: Path):
     final = Path(final)
     final.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.partial-", dir=final.parent))
+    os.chmod(tmp, umask_mode(0o777))
     try:
         yield tmp
     except BaseException:
@@ -95,6 +105,7 @@ def replaced_atomically(path: Path):
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
     os.close(fd)
+    os.chmod(tmp, umask_mode(0o666))
     try:
         yield Path(tmp)
         os.replace(tmp, path)

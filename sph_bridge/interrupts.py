@@ -1,7 +1,10 @@
 """Ctrl-C (or a batch system's SIGTERM, which the commands turn into one) during a run: the
-run stops and its directory is written with status "interrupted", exit status 130."""
+run stops and its directory is written with status "interrupted", exit status 130 (Ctrl-C) or
+143 (SIGTERM)."""
 
 from __future__ import annotations
+
+from hmdem.cli import interrupted_status
 
 STOP = (KeyboardInterrupt, SystemError)  # what a Ctrl-C can surface as (see :func:`interrupted`)
 
@@ -17,4 +20,6 @@ def interrupted(exc: BaseException) -> bool:
 
 
 def exit_status(status: str) -> int:
-    return {"finished": 0, "interrupted": 130}.get(status, 1)
+    if status == "interrupted":
+        return interrupted_status()
+    return 0 if status == "finished" else 1

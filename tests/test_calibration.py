@@ -222,6 +222,55 @@ def test_contact_flags_reach_the_biaxial_and_darcy_tests(tmp_path, monkeypatch):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_interrupted_darcy_sweep_writes_the_stresses_done(tmp_path, monkeypatch, capsys):
+    # Ctrl-C (or SIGTERM) during the third compaction: a valid run directory with the two
+    # stresses done, the stored packing's row, status "interrupted", exit 130 (no YADE here)
+    import hmdem.coupling.darcy as darcy
+
+    def two_then_ctrl_c(stresses, *args, progress, **kwargs):
+        pk = DiscPacking.load(default_huang_packing_path())
+        for k, stress in enumerate(stresses[:2]):
+            res = packing_permeability(pk)
+            res.extra = {"target_stress": float(stress), "seconds": 0.0}
+            progress(k, stress, res)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(darcy, "permeability_sweep", two_then_ctrl_c)
+    out = tmp_path / "da"
+    assert main(["darcy", "--stresses", "1e5,1.4e5,5e5", "--out", str(out), "--quiet"]) == 130
+    assert "interrupted after 2 of 3 stresses" in capsys.readouterr().err
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "interrupted" and [r["target_stress"] for r in s["results"]] == [1e5, 1.4e5]
+    assert s["sweep_permeability_at_paper_stress_m2"] == s["results"][1]["permeability"]
+    assert len((out / "permeability.csv").read_text().splitlines()) == 4  # header, 2 stresses, stored packing
+    assert (out / "permeability.png").stat().st_size > 0
+    assert [p.name for p in tmp_path.iterdir()] == ["da"]
+
+
+def test_interrupted_biaxial_writes_the_curve_so_far(tmp_path, monkeypatch, capsys):
+    # a loading stopped at 0.4 % axial strain: E and nu (fitted below 0.1 %) are known, the rest
+    # is of the curve so far; status "interrupted", exit 130, the curve in timeseries.csv
+    import hmdem.dem.biaxial as biaxial
+
+    def cut_short(*args, **kwargs):
+        ea = np.linspace(0.0, 0.004, 41)
+        res = biaxial.BiaxialResult(np.arange(41), 1e-6 * np.arange(41), ea, -0.2 * ea, 0.8 * ea,
+                                    1e5 + 5e7 * ea, np.full(41, 1e5), sigma3_target=1e5, strain_rate=5.0,
+                                    fit_strain=biaxial.FIT_STRAIN, status="interrupted")
+        res.derive_constants()
+        return res
+
+    monkeypatch.setattr(biaxial, "run_biaxial", cut_short)
+    out = tmp_path / "bi"
+    assert main(["biaxial", "--rate-check", "--out", str(out), "--quiet"]) == 130
+    assert "interrupted at axial strain 0.400%" in capsys.readouterr().err
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "interrupted" and "rate_check" not in s  # no second loading after a stop
+    assert s["young_modulus_pa"] == pytest.approx(5e7) and s["poisson_ratio"] == pytest.approx(0.2)
+    assert s["max_axial_strain"] == pytest.approx(0.004)
+    assert len((out / "timeseries.csv").read_text().splitlines()) == 42
+
+
 def test_existing_run_directory_is_refused(tmp_path, capsys):
     out = tmp_path / "taken"
     out.mkdir()
@@ -343,6 +392,50 @@ def test_biaxial_friction_angle_is_physical_and_comes_from_grain_friction(small_
     # elastic constants: positive, E below the contact stiffness scale, 2D nu in (0, 0.5)
     assert 0.1 * 7.49e7 < res.young_modulus < 7.49e7
     assert 0.0 < res.poisson_ratio < 0.5
+
+
+@pytest.mark.yade
+def test_interrupted_loading_keeps_the_curve_and_its_elastic_constants(small_biaxial):
+    # Ctrl-C at 0.5 % axial strain (raised from the progress callback, inside the loading loop):
+    # the same trajectory as the full test up to there, so the same E and nu (their fit window
+    # ends at 0.1 %), and the scene is reset for the next test
+    from hmdem.dem.biaxial import load_biaxial
+
+    def ctrl_c_at(ea, s1, s3):
+        if ea > 0.005:
+            raise KeyboardInterrupt
+
+    cut = load_biaxial(small_biaxial.packing, strain_rate=20.0, progress=ctrl_c_at)
+    assert cut.status == "interrupted" and small_biaxial.status == "finished"
+    assert 0.005 < cut.strain_axial[-1] < 0.01 and len(cut.sigma1) == len(cut.strain_lateral)
+    assert cut.young_modulus == pytest.approx(small_biaxial.young_modulus, rel=1e-9)
+    assert cut.poisson_ratio == pytest.approx(small_biaxial.poisson_ratio, rel=1e-9)
+    from yade import O
+
+    assert len(O.bodies) == 0
+
+
+@pytest.mark.yade
+def test_compaction_sigterm_is_one_line_exit_143_nothing_written(tmp_path):
+    # a batch system's SIGTERM during compaction: no traceback, exit 128 + 15, no packing file
+    import signal
+    import subprocess
+    import sys
+
+    from conftest import popen_interruptible
+
+    out = tmp_path / "pk.npz"
+    proc = popen_interruptible([sys.executable, "-m", "hmdem.dem.compaction", "--out", str(out)],
+                               stdout=subprocess.DEVNULL)
+    seen = ""
+    while "cycles" not in seen and proc.poll() is None:  # the bar is up: the CLI's handler is in place
+        seen += proc.stderr.read(1)
+    proc.send_signal(signal.SIGTERM)
+    err = seen + proc.communicate(timeout=120)[1]
+    assert proc.returncode == 143
+    assert err.rstrip().splitlines()[-1] == "python -m hmdem.dem.compaction: interrupted before any results; " \
+                                            "nothing was written"
+    assert "Traceback" not in err and list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.yade

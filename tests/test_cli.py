@@ -132,6 +132,23 @@ def test_an_out_taken_during_the_run_keeps_the_results_beside_it(tmp_path, capsy
     assert len(lines) == 1 and lines[0].startswith("prog: --out:") and "second.unsaved-" in lines[0]
 
 
+def test_run_directories_and_replaced_files_follow_the_umask(tmp_path):
+    # mkdtemp / mkstemp would leave them private (0o700 / 0o600): a group could not read a run
+    import stat
+
+    from hmdem.rundir import atomic_run_directory, write_text_atomic
+
+    umask = os.umask(0o022)
+    try:
+        with atomic_run_directory(tmp_path / "run") as tmp:
+            (tmp / "summary.json").write_text("{}")
+        write_text_atomic(tmp_path / "manifest.json", "{}")
+    finally:
+        os.umask(umask)
+    assert stat.S_IMODE((tmp_path / "run").stat().st_mode) == 0o755
+    assert stat.S_IMODE((tmp_path / "manifest.json").stat().st_mode) == 0o644
+
+
 def test_interrupt_outside_a_runs_steps_is_one_line_and_status_130(capsys):
     # e.g. Ctrl-C while YADE settles the sample, before the first step: no traceback
     import argparse
@@ -176,8 +193,8 @@ def test_explicit_scheme_runs_and_agrees_early(tmp_path):
 
 @pytest.mark.parametrize("signal_name", ["SIGINT", "SIGTERM"])
 def test_real_signal_leaves_valid_partial_directory(tmp_path, signal_name):
-    # a user's Ctrl-C (SIGINT) or a batch scheduler's SIGTERM mid-run: exit 130 and a complete
-    # run directory marked interrupted
+    # a user's Ctrl-C (SIGINT) or a batch scheduler's SIGTERM mid-run: exit 128 + the signal (the
+    # shell's convention: 130, 143) and a complete run directory marked interrupted
     import signal
     import time
 
@@ -191,7 +208,7 @@ def test_real_signal_leaves_valid_partial_directory(tmp_path, signal_name):
     time.sleep(1.0)
     proc.send_signal(getattr(signal, signal_name))
     proc.communicate(timeout=120)
-    assert proc.returncode == 130
+    assert proc.returncode == {"SIGINT": 130, "SIGTERM": 143}[signal_name]
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "interrupted" and summary["steps"] > 0
     assert np.load(out / "state.npz")["pressure"].shape == (summary["n_domains"],)

@@ -75,6 +75,22 @@ class BiaxialResult:
     loading_seconds: float = 0.0
     settings: dict = field(default_factory=dict)
     packing: DiscPacking | None = None  # the compacted sample the test started from
+    status: str = "finished"  # or "interrupted" (Ctrl-C, SIGTERM): the curve up to max_axial_strain
+
+    def derive_constants(self) -> None:
+        """E and nu (:func:`elastic_constants`), the peak, phi and the sigma3 deviation from the
+        curve. An interrupted curve gives those it reaches: E and nu once it has passed
+        ``fit_strain``, a peak (of the curve so far) once it has 5 samples; the rest stay NaN."""
+        if len(self.sigma1) == 0:
+            return
+        if self.status == "finished" or self.strain_axial[-1] > self.fit_strain[1]:
+            self.young_modulus, self.poisson_ratio = elastic_constants(self.strain_axial, self.strain_lateral,
+                                                                       self.deviator, self.fit_strain)
+        if len(self.sigma1) >= 5:
+            self.peak_sigma1, self.sigma3_at_peak, self.strain_at_peak = peak(self.sigma1, self.sigma3,
+                                                                              self.strain_axial)
+            self.friction_angle = mohr_coulomb_friction_angle(self.peak_sigma1, self.sigma3_at_peak)
+        self.max_sigma3_deviation = float(np.max(np.abs(self.sigma3 - self.sigma3_target)) / self.sigma3_target)
 
     @property
     def deviator(self) -> np.ndarray:
@@ -92,6 +108,7 @@ class BiaxialResult:
     def summary(self) -> dict:
         """Scalars for summary.json, with the paper's targets and the relative errors."""
         out = {
+            "status": self.status,
             "young_modulus_pa": self.young_modulus,
             "poisson_ratio": self.poisson_ratio,
             "peak_sigma1_pa": self.peak_sigma1,
@@ -245,39 +262,36 @@ def load_biaxial(pk: DiscPacking, sigma3: float = SIGMA3, strain_rate: float = S
     run_cycles(O, 1)  # creates the contacts: the starting stresses
     rec = {k: [] for k in ("cycles", "time", "ea", "el", "ev", "s1", "s3")}
     cycles = 1
+    status = "finished"
     t0 = time.perf_counter()
-    while True:
-        s = walls.stresses()
-        width, height = walls.sizes()
-        ea, el = (h0 - height) / h0, (w0 - width) / w0
-        s1, s3 = 0.5 * (s[2] + s[3]), 0.5 * (s[0] + s[1])
-        rec["cycles"].append(cycles)
-        rec["time"].append(cycles * dt)
-        rec["ea"].append(ea)
-        rec["el"].append(el)
-        rec["ev"].append(1.0 - width * height / (w0 * h0))
-        rec["s1"].append(s1)
-        rec["s3"].append(s3)
-        if progress is not None:
-            progress(ea, s1, s3)
-        if ea >= max_strain:
-            break
-        for k in (0, 1):
-            walls.set_inward_load(k, sigma3 * height)
-        run_cycles(O, chunk)
-        cycles += chunk
+    try:
+        while True:
+            s = walls.stresses()
+            width, height = walls.sizes()
+            ea, el = (h0 - height) / h0, (w0 - width) / w0
+            s1, s3 = 0.5 * (s[2] + s[3]), 0.5 * (s[0] + s[1])
+            row = (cycles, cycles * dt, ea, el, 1.0 - width * height / (w0 * h0), s1, s3)
+            for key, value in zip(rec, row):
+                rec[key].append(value)
+            if progress is not None:
+                progress(ea, s1, s3)
+            if ea >= max_strain:
+                break
+            for k in (0, 1):
+                walls.set_inward_load(k, sigma3 * height)
+            run_cycles(O, chunk)
+            cycles += chunk
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the curve so far
+        status = "interrupted"
     loading_seconds = time.perf_counter() - t0
     O.reset()
-    arr = {k: np.array(v) for k, v in rec.items()}
+    rows = min(len(v) for v in rec.values())  # an interrupt may land between two appends
+    arr = {k: np.array(v[:rows]) for k, v in rec.items()}
     res = BiaxialResult(arr["cycles"], arr["time"], arr["ea"], arr["el"], arr["ev"], arr["s1"], arr["s3"],
                         sigma3_target=sigma3, strain_rate=strain_rate, fit_strain=tuple(fit_strain),
                         n_grains=len(ids), porosity=pk.porosity, box=(w0, h0), timestep=dt,
-                        loading_seconds=loading_seconds)
-    res.young_modulus, res.poisson_ratio = elastic_constants(res.strain_axial, res.strain_lateral, res.deviator,
-                                                             fit_strain)
-    res.peak_sigma1, res.sigma3_at_peak, res.strain_at_peak = peak(res.sigma1, res.sigma3, res.strain_axial)
-    res.friction_angle = mohr_coulomb_friction_angle(res.peak_sigma1, res.sigma3_at_peak)
-    res.max_sigma3_deviation = float(np.max(np.abs(res.sigma3 - sigma3)) / sigma3)
+                        loading_seconds=loading_seconds, status=status)
+    res.derive_constants()
     return res
 
 

@@ -22,6 +22,34 @@ UNBALANCED_FORCE = 1e-3
 WALLS = ((0, -1), (0, +1), (1, -1), (1, +1))  # (axis, side): left, right, bottom, top
 
 
+class CompactionBar:
+    """A tqdm line for :func:`compact_sample`'s ``progress(cycles, wall_stresses)``: cycles run
+    and the mean wall stress, refreshed at most every ``every_s`` seconds."""
+
+    def __init__(self, every_s: float = 0.25):
+        self.every_s, self.last, self.bar = every_s, 0.0, None
+
+    def __call__(self, cycles: int, stresses: np.ndarray) -> None:
+        import sys
+        import time
+
+        from tqdm import tqdm
+
+        if self.bar is None:
+            self.bar = tqdm(desc="compaction", unit=" cycles", file=sys.stderr,
+                            bar_format="{desc}: {n} cycles [{elapsed}]{postfix}")
+        now = time.perf_counter()
+        if now - self.last >= self.every_s:
+            self.last = now
+            self.bar.n = cycles
+            self.bar.set_postfix_str(f"wall stress {stresses.mean() / 1e3:.1f} kPa")
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
+
+
 def compact_sample(n: int = 1395, size: float = 1.25e-3, r_min: float = 13.0e-6, r_max: float = 21.6e-6,
                    stress: float = 0.14e6, seed: int = 0, k_n: float = CONTACT_STIFFNESS,
                    density: float = GRAIN_DENSITY,
@@ -95,7 +123,8 @@ def compact_sample(n: int = 1395, size: float = 1.25e-3, r_min: float = 13.0e-6,
     centres, final_radii = disc_state(ids)
     x = wall_positions()
     # grains touching a wall form the fixed boundary ring
-    gap = np.min(np.stack([centres[:, 0] - x[0], x[1] - centres[:, 0], centres[:, 1] - x[2], x[3] - centres[:, 1]], 1), 1)
+    gap = np.min(np.stack([centres[:, 0] - x[0], x[1] - centres[:, 0],
+                           centres[:, 1] - x[2], x[3] - centres[:, 1]], 1), 1)
     fixed = gap <= final_radii * (1.0 + 1e-6)
     contacts = disc_contacts(ids)
     box = (float(x[1] - x[0]), float(x[3] - x[2]))
@@ -107,10 +136,9 @@ def compact_sample(n: int = 1395, size: float = 1.25e-3, r_min: float = 13.0e-6,
 
 
 def main(argv=None) -> int:
-    import time
     from pathlib import Path
 
-    from ..cli import (InputError, OneLineParser, add_contact_arguments, check_out_parent, grain_count,
+    from ..cli import (InputError, OneLineParser, add_contact_arguments, check_out_parent, dispatch, grain_count,
                        non_negative_int, positive_number)
 
     prog = "python -m hmdem.dem.compaction"
@@ -128,6 +156,7 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=non_negative_int, default=0, help="seed of the radii and the seeding "
                                                                           "(default %(default)d)")
     add_contact_arguments(parser, friction=False)  # compaction is frictionless; the runs set mu
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     if args.out.suffix != ".npz":  # numpy would append it, and the file would not be the one named
         parser.error(f"--out: must end in .npz, got {str(args.out)!r}")
@@ -135,10 +164,28 @@ def main(argv=None) -> int:
         check_out_parent(args.out)
     except InputError as exc:
         parser.error(str(exc))
+    args.command = "compaction"
+    # Ctrl-C or SIGTERM: one line, exit 130 or 143, nothing written (the file is all or nothing)
+    return dispatch(prog, parser, args, {"compaction": write_packing})
+
+
+def write_packing(args) -> int:
+    """The ``compaction`` command's work: compact, then write ``--out`` in one go."""
+    import time
+
+    from ..rundir import replaced_atomically
+
     t0 = time.perf_counter()
-    pk = compact_sample(args.n, args.size, stress=args.stress, seed=args.seed, k_n=args.contact_stiffness)
+    bar = None if args.quiet else CompactionBar()
+    try:
+        pk = compact_sample(args.n, args.size, stress=args.stress, seed=args.seed, k_n=args.contact_stiffness,
+                            progress=bar)
+    finally:
+        if bar is not None:
+            bar.close()
     args.out.absolute().parent.mkdir(parents=True, exist_ok=True)
-    pk.save(args.out)
+    with replaced_atomically(args.out) as tmp:  # a kill while writing leaves no part of a file
+        pk.save(tmp)
     print(f"{len(pk.radii)} discs in {pk.box[0] * 1e3:.4f} x {pk.box[1] * 1e3:.4f} mm, porosity {pk.porosity:.4f}, "
           f"{int(pk.fixed.sum())} fixed boundary grains, wall stress {pk.confining_stress / 1e6:.4f} MPa, "
           f"k_n {pk.contact_stiffness:g} N/m, {time.perf_counter() - t0:.0f} s -> {args.out}")

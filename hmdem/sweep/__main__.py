@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 from .. import __version__
-from ..cli import InputError, OneLineParser, dispatch, positive_int, read_packing
+from ..cli import InputError, OneLineParser, dispatch, interrupted_status, positive_int, read_packing
 
 PROG = "python -m hmdem.sweep"
 DEFAULT_LOG_M = "-5:2:5"
@@ -104,7 +104,7 @@ def run_lenormand(args) -> int:
           f"{len(rows)} rows in {out / 'sweep.csv'}")
     if interrupted:
         print(f"{PROG}: interrupted; run the same command again to finish the sweep", file=sys.stderr)
-        return 130
+        return interrupted_status()
     return 1 if counts[FAILED] else 0
 
 

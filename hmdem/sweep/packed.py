@@ -11,6 +11,7 @@ import tarfile
 import tempfile
 from pathlib import Path
 
+from ..rundir import umask_mode
 from .grid import SweepPoint
 from .runner import cli_arguments, run_point
 
@@ -29,6 +30,7 @@ def unpack_directory(data: bytes, final: Path) -> None:
     final = Path(final)
     final.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.partial-", dir=final.parent))
+    os.chmod(tmp, umask_mode(0o777))
     try:
         with tarfile.open(fileobj=io.BytesIO(data)) as tar:
             members = tar.getmembers()

@@ -24,6 +24,8 @@ import signal
 import time
 import traceback
 
+from hmdem.cli import record_interrupt
+
 POLL_SECONDS = 0.5
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -81,6 +83,7 @@ def run_in_workers(jobs, workers: int, progress, channel_done=lambda: None) -> t
     incomplete = False
 
     def raise_stop(signum, frame):
+        record_interrupt(signum)  # the exit status names the signal
         stop.value = 1
 
     previous = {sig: signal.signal(sig, raise_stop) for sig in STOP_SIGNALS}
