@@ -111,9 +111,10 @@ def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -
     """Run ``commands[args.command](args)``: a batch system's SIGTERM (or kill) ends it like
     Ctrl-C (exit status :func:`interrupted_status`), an :class:`InputError` is one line on stderr
     and exit status 2, and so is an ``--out`` that another process took during the run
-    (:class:`~hmdem.rundir.RunDirectoryTaken`)."""
+    (:class:`~hmdem.rundir.RunDirectoryTaken`). The SIGTERM handler is the command's only:
+    the previous one is back when it returns."""
     _last_interrupt["signal"] = signal.SIGINT
-    signal.signal(signal.SIGTERM, _terminate)
+    previous = signal.signal(signal.SIGTERM, _terminate)
     try:
         if args.command in commands:
             return commands[args.command](args)
@@ -121,8 +122,11 @@ def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -
         print(f"{prog}: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:  # a run's time steps catch their own; this one came outside them
-        print(f"{prog}: interrupted before any results; nothing was written", file=sys.stderr)
+        print(f"{prog}: interrupted; the results in progress were not written", file=sys.stderr)
         return interrupted_status()
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        _last_interrupt["signal"] = signal.SIGINT  # nothing after the command reads its signal
     parser.print_help()
     return 2
 

@@ -62,13 +62,25 @@ class RunDirectoryTaken(OSError):
     kept under a sibling name, which the message gives."""
 
 
+def current_umask() -> int:
+    """The process's umask, read from /proc where it can be (setting it to read it back would
+    briefly change it for every thread, e.g. a Dask client's)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    except OSError:
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def umask_mode(base: int) -> int:
     """``base`` (0o777 for a directory, 0o666 for a file) under the process's umask: the mode
     ``mkdir`` or ``open`` would give. ``mkdtemp`` and ``mkstemp`` make private 0o700 / 0o600
     entries, which would hide a run from the rest of a research group."""
-    mask = os.umask(0)
-    os.umask(mask)
-    return base & ~mask
+    return base & ~current_umask()
 
 
 @contextmanager
@@ -81,8 +93,8 @@ def atomic_run_directory(final: Path):
     final = Path(final)
     final.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.partial-", dir=final.parent))
-    os.chmod(tmp, umask_mode(0o777))
     try:
+        os.chmod(tmp, umask_mode(0o777))
         yield tmp
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -105,8 +117,8 @@ def replaced_atomically(path: Path):
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
     os.close(fd)
-    os.chmod(tmp, umask_mode(0o666))
     try:
+        os.chmod(tmp, umask_mode(0o666))
         yield Path(tmp)
         os.replace(tmp, path)
     except BaseException:

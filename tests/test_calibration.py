@@ -247,28 +247,56 @@ def test_interrupted_darcy_sweep_writes_the_stresses_done(tmp_path, monkeypatch,
     assert [p.name for p in tmp_path.iterdir()] == ["da"]
 
 
+def _loading(max_strain, status):
+    """A synthetic biaxial curve to ``max_strain``: q = 5e7 e - 1e9 e^2 [Pa] (its peak at 2.5 %),
+    nu = 0.2, 100 samples per 1 % of axial strain."""
+    import hmdem.dem.biaxial as biaxial
+
+    n = int(round(1e4 * max_strain)) + 1
+    ea = np.linspace(0.0, max_strain, n)
+    res = biaxial.BiaxialResult(np.arange(n), 1e-6 * np.arange(n), ea, -0.2 * ea, 0.8 * ea,
+                                1e5 + 5e7 * ea - 1e9 * ea**2, np.full(n, 1e5), sigma3_target=1e5, strain_rate=5.0,
+                                fit_strain=biaxial.FIT_STRAIN, status=status)
+    res.derive_constants()
+    return res
+
+
 def test_interrupted_biaxial_writes_the_curve_so_far(tmp_path, monkeypatch, capsys):
     # a loading stopped at 0.4 % axial strain: E and nu (fitted below 0.1 %) are known, the rest
     # is of the curve so far; status "interrupted", exit 130, the curve in timeseries.csv
     import hmdem.dem.biaxial as biaxial
 
-    def cut_short(*args, **kwargs):
-        ea = np.linspace(0.0, 0.004, 41)
-        res = biaxial.BiaxialResult(np.arange(41), 1e-6 * np.arange(41), ea, -0.2 * ea, 0.8 * ea,
-                                    1e5 + 5e7 * ea, np.full(41, 1e5), sigma3_target=1e5, strain_rate=5.0,
-                                    fit_strain=biaxial.FIT_STRAIN, status="interrupted")
-        res.derive_constants()
-        return res
-
-    monkeypatch.setattr(biaxial, "run_biaxial", cut_short)
+    monkeypatch.setattr(biaxial, "run_biaxial", lambda *args, **kwargs: _loading(0.004, "interrupted"))
     out = tmp_path / "bi"
     assert main(["biaxial", "--rate-check", "--out", str(out), "--quiet"]) == 130
-    assert "interrupted at axial strain 0.400%" in capsys.readouterr().err
+    assert "interrupted in the loading at axial strain 0.400%" in capsys.readouterr().err
     s = json.loads((out / "summary.json").read_text())
     assert s["status"] == "interrupted" and "rate_check" not in s  # no second loading after a stop
-    assert s["young_modulus_pa"] == pytest.approx(5e7) and s["poisson_ratio"] == pytest.approx(0.2)
+    # least squares of q = 5e7 e - 1e9 e^2 over e uniform in [0, 0.001]: slope 5e7 - 1e9 x 0.001
+    assert s["young_modulus_pa"] == pytest.approx(4.9e7, rel=1e-9) and s["poisson_ratio"] == pytest.approx(0.2)
     assert s["max_axial_strain"] == pytest.approx(0.004)
     assert len((out / "timeseries.csv").read_text().splitlines()) == 42
+
+
+def test_interrupted_rate_check_keeps_the_full_rate_test(tmp_path, monkeypatch, capsys):
+    # the half-rate loading stopped at 0.4 %: the full-rate results stay whole, and the check
+    # reports no peak change (a partial curve's peak is not the half-rate peak)
+    import hmdem.dem.biaxial as biaxial
+
+    full = _loading(0.025, "finished")
+    full.packing = None
+    monkeypatch.setattr(biaxial, "run_biaxial", lambda *args, **kwargs: full)
+    monkeypatch.setattr(biaxial, "load_biaxial", lambda *args, **kwargs: _loading(0.004, "interrupted"))
+    out = tmp_path / "bi"
+    assert main(["biaxial", "--rate-check", "--out", str(out), "--quiet"]) == 130
+    captured = capsys.readouterr()
+    assert "interrupted in the half-rate check at axial strain 0.400%" in captured.err
+    assert "peak sigma1 changes" not in captured.out
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "interrupted" and s["max_axial_strain"] == pytest.approx(0.025)
+    assert s["peak_sigma1_pa"] == pytest.approx(full.peak_sigma1)
+    assert s["rate_check"]["status"] == "interrupted" and s["rate_check"]["max_axial_strain"] == pytest.approx(0.004)
+    assert "peak_relative_change" not in s["rate_check"]
 
 
 def test_existing_run_directory_is_refused(tmp_path, capsys):
@@ -433,9 +461,34 @@ def test_compaction_sigterm_is_one_line_exit_143_nothing_written(tmp_path):
     proc.send_signal(signal.SIGTERM)
     err = seen + proc.communicate(timeout=120)[1]
     assert proc.returncode == 143
-    assert err.rstrip().splitlines()[-1] == "python -m hmdem.dem.compaction: interrupted before any results; " \
-                                            "nothing was written"
+    assert err.rstrip().splitlines()[-1] == "python -m hmdem.dem.compaction: interrupted; the results in " \
+                                            "progress were not written"
     assert "Traceback" not in err and list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.yade
+def test_darcy_sigterm_writes_the_stresses_done_and_exits_143(tmp_path):
+    # a batch system's SIGTERM after the first stress of a long sweep: exit 128 + 15 and a valid
+    # run directory with the stresses finished
+    import signal
+    import subprocess
+    import sys
+
+    from conftest import popen_interruptible
+
+    out = tmp_path / "da"
+    stresses = ",".join(f"{s:g}" for s in np.linspace(1e5, 2e6, 12))
+    proc = popen_interruptible([sys.executable, "-m", "hmdem.calibrate", "darcy", "--n", "300", "--stresses",
+                                stresses, "--out", str(out)], stdout=subprocess.DEVNULL)
+    seen = ""
+    while "[1/12]" not in seen and proc.poll() is None:
+        seen += proc.stderr.read(1)
+    proc.send_signal(signal.SIGTERM)
+    err = seen + proc.communicate(timeout=120)[1]
+    assert proc.returncode == 143, err[-2000:]
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "interrupted" and 1 <= len(s["results"]) < 12
+    assert len((out / "permeability.csv").read_text().splitlines()) == len(s["results"]) + 2
 
 
 @pytest.mark.yade

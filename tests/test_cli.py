@@ -138,15 +138,36 @@ def test_run_directories_and_replaced_files_follow_the_umask(tmp_path):
 
     from hmdem.rundir import atomic_run_directory, write_text_atomic
 
-    umask = os.umask(0o022)
+    umask = os.umask(0o027)
     try:
         with atomic_run_directory(tmp_path / "run") as tmp:
             (tmp / "summary.json").write_text("{}")
         write_text_atomic(tmp_path / "manifest.json", "{}")
     finally:
         os.umask(umask)
-    assert stat.S_IMODE((tmp_path / "run").stat().st_mode) == 0o755
-    assert stat.S_IMODE((tmp_path / "manifest.json").stat().st_mode) == 0o644
+    assert stat.S_IMODE((tmp_path / "run").stat().st_mode) == 0o750
+    assert stat.S_IMODE((tmp_path / "manifest.json").stat().st_mode) == 0o640
+
+
+def test_dispatch_exit_status_names_the_signal_and_restores_the_handler():
+    # SIGTERM inside a command: 128 + 15; the handler before dispatch is back afterwards, and
+    # the next command's Ctrl-C is 130 again (no signal carried over)
+    import argparse
+    import signal
+
+    from hmdem.cli import dispatch
+
+    def terminated(args):
+        signal.raise_signal(signal.SIGTERM)
+
+    def ctrl_c(args):
+        raise KeyboardInterrupt
+
+    before = signal.getsignal(signal.SIGTERM)
+    parser, args = argparse.ArgumentParser(), argparse.Namespace(command="run")
+    assert dispatch("prog", parser, args, {"run": terminated}) == 143
+    assert signal.getsignal(signal.SIGTERM) is before
+    assert dispatch("prog", parser, args, {"run": ctrl_c}) == 130
 
 
 def test_interrupt_outside_a_runs_steps_is_one_line_and_status_130(capsys):

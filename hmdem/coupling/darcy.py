@@ -212,16 +212,19 @@ def packing_permeability(pk: DiscPacking, law: ApertureLaw | None = None, contac
 def permeability_sweep(stresses=STRESSES, n: int = 1395, seed: int = 0, *, size: float = 1.25e-3,
                        r_min: float = 13.0e-6, r_max: float = 21.6e-6, k_n: float = CONTACT_STIFFNESS,
                        density: float = GRAIN_DENSITY, law: ApertureLaw | None = None,
-                       contact_gap: float = NEAR_CONTACT_GAP, progress=None) -> list[PackingPermeability]:
+                       contact_gap: float = NEAR_CONTACT_GAP, progress=None,
+                       compaction_progress=None) -> list[PackingPermeability]:
     """Compact the sample (same seed, hence the same initial seeding) to each confining stress
     with :func:`hmdem.dem.compaction.compact_sample` and return the permeability at each.
-    ``progress(k, stress, result)`` is called after each stress."""
+    ``progress(k, stress, result)`` is called after each stress, ``compaction_progress`` is
+    :func:`compact_sample`'s ``progress(cycles, wall_stresses)``."""
     from ..dem.compaction import compact_sample
 
     out = []
     for k, stress in enumerate(stresses):
         t0 = time.perf_counter()
-        pk = compact_sample(n, size, r_min, r_max, stress=float(stress), seed=seed, k_n=k_n, density=density)
+        pk = compact_sample(n, size, r_min, r_max, stress=float(stress), seed=seed, k_n=k_n, density=density,
+                            progress=compaction_progress)
         res = packing_permeability(pk, law, contact_gap)
         res.extra = {"target_stress": float(stress), "seconds": time.perf_counter() - t0}
         out.append(res)

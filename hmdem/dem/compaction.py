@@ -10,6 +10,9 @@ the fixed boundary grains of the injection runs (digest §11.2: "all boundary gr
 
 from __future__ import annotations
 
+import sys
+import time
+
 import numpy as np
 
 from ..network.packing import CONTACT_STIFFNESS, GRAIN_DENSITY, DiscPacking
@@ -27,17 +30,14 @@ class CompactionBar:
     and the mean wall stress, refreshed at most every ``every_s`` seconds."""
 
     def __init__(self, every_s: float = 0.25):
-        self.every_s, self.last, self.bar = every_s, 0.0, None
-
-    def __call__(self, cycles: int, stresses: np.ndarray) -> None:
-        import sys
-        import time
-
         from tqdm import tqdm
 
-        if self.bar is None:
-            self.bar = tqdm(desc="compaction", unit=" cycles", file=sys.stderr,
-                            bar_format="{desc}: {n} cycles [{elapsed}]{postfix}")
+        self.tqdm, self.every_s, self.last, self.bar = tqdm, every_s, 0.0, None
+
+    def __call__(self, cycles: int, stresses: np.ndarray) -> None:
+        if self.bar is None:  # opened at the first report, so that a closed bar can start again
+            self.bar = self.tqdm(desc="compaction", unit=" cycles", file=sys.stderr,
+                                 bar_format="{desc}: {n} cycles [{elapsed}]{postfix}")
         now = time.perf_counter()
         if now - self.last >= self.every_s:
             self.last = now
@@ -160,19 +160,19 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.out.suffix != ".npz":  # numpy would append it, and the file would not be the one named
         parser.error(f"--out: must end in .npz, got {str(args.out)!r}")
+    if args.out.is_dir():
+        parser.error(f"--out: {str(args.out)!r} is a directory; name the packing file to write")
     try:
         check_out_parent(args.out)
     except InputError as exc:
         parser.error(str(exc))
-    args.command = "compaction"
+    args.command = "compaction"  # dispatch runs commands by name; this CLI has the one
     # Ctrl-C or SIGTERM: one line, exit 130 or 143, nothing written (the file is all or nothing)
     return dispatch(prog, parser, args, {"compaction": write_packing})
 
 
 def write_packing(args) -> int:
     """The ``compaction`` command's work: compact, then write ``--out`` in one go."""
-    import time
-
     from ..rundir import replaced_atomically
 
     t0 = time.perf_counter()

@@ -30,8 +30,8 @@ def unpack_directory(data: bytes, final: Path) -> None:
     final = Path(final)
     final.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.partial-", dir=final.parent))
-    os.chmod(tmp, umask_mode(0o777))
     try:
+        os.chmod(tmp, umask_mode(0o777))
         with tarfile.open(fileobj=io.BytesIO(data)) as tar:
             members = tar.getmembers()
             for member in members:  # a run directory is flat: plain files with plain names
