@@ -1,0 +1,65 @@
+"""Where a radial run's injected volume went by breakthrough, read from finished run directories (digest H4).
+
+    .venv/bin/python benchmarks/b3_volume_split.py RUN_DIR [RUN_DIR ...]
+
+Domain volumes are centre-polygon areas (digest §3.3), so the invading fluid sum S_i V_i splits
+exactly into the part that fills the invaded domains' areas at the start (infiltration of the
+original pore network) and the part that fills their growth as the grains moved away (the cavity
+the injection pressure opens). The final volumes are the model's own (network.npz, which holds
+the final state; a domain whose polygon has turned inside out is held at 1 % of its starting
+area), the starting ones are the same polygons on the starting positions (fractures.npz). The
+dry domains shrink by about as much as the wet ones grow (the hull is fixed), so the growth is
+also the compaction of the dry skeleton, given as a fraction of its starting area; the last
+columns count the polygons that have turned inside out and the room their floors add (the model's
+sum of V less the hull area, which the polygons' own signed areas keep exactly). Takes a second
+per directory.
+"""
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from hmdem.coupling.geometry import signed_triangle_areas
+from hmdem.network.network import OUTSIDE
+
+
+def domain_areas(net, initial: np.ndarray, final: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each domain's centre-polygon area with the grains at ``initial`` and at ``final``."""
+    inside = net["triangle_domain"] != OUTSIDE
+    triangles, domain = net["triangles"][inside], net["triangle_domain"][inside]
+    orientation = np.sign(signed_triangle_areas(initial, triangles))  # areas stay positive as grains move
+    n = len(net["domain_volume"])
+    return tuple(np.bincount(domain, orientation * signed_triangle_areas(points, triangles), n)
+                 for points in (initial, final))
+
+
+def row(run: Path) -> str:
+    summary = json.loads((run / "summary.json").read_text())
+    net, fractures, state = (np.load(run / f"{name}.npz") for name in ("network", "fractures", "state"))
+    v0, polygon = domain_areas(net, fractures["initial_positions"], fractures["positions"])
+    v1 = net["domain_volume"]  # the model's final volumes (inside-out polygons held at their floor)
+    s = state["saturation"]
+    fluid, infiltrated = float(s @ v1), float(s @ v0)
+    dry = s == 0
+    injected = summary["rate_m3_per_s_per_m"] * float(state["t"])
+    return (f"| {run} | {summary['case']} | {summary['status']} at {float(state['t']):.3g} s | {injected:.3g} | "
+            f"{fluid:.3g} | {infiltrated / fluid:.0%} | {(fluid - infiltrated) / fluid:.0%} | {int((~dry).sum())} | "
+            f"{(v0[dry] - v1[dry]).sum() / v0[dry].sum():.1%} | {fluid / injected:.3f} | {int((polygon < 0).sum())} | "
+            f"{(v1.sum() - polygon.sum()) / fluid:.1%} |")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("runs", nargs="+", type=Path, help="finished radial run directories")
+    args = parser.parse_args()
+    print("| run | case | end | injected Q t [m^2 per m] | fluid sum S V [m^2 per m] | into the starting areas | "
+          "into their growth | wet domains | dry skeleton compacted by | sum S V / Q t | inside-out polygons | "
+          "sum V - hull area, of sum S V |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for run in args.runs:
+        print(row(run), flush=True)
+
+
+if __name__ == "__main__":
+    main()
