@@ -113,7 +113,6 @@ def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -
     and exit status 2, and so is an ``--out`` that another process took during the run
     (:class:`~hmdem.rundir.RunDirectoryTaken`). The SIGTERM handler is the command's only:
     the previous one is back when it returns."""
-    _last_interrupt["signal"] = signal.SIGINT
     previous = signal.signal(signal.SIGTERM, _terminate)
     try:
         if args.command in commands:
@@ -126,7 +125,7 @@ def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -
         return interrupted_status()
     finally:
         signal.signal(signal.SIGTERM, previous)
-        _last_interrupt["signal"] = signal.SIGINT  # nothing after the command reads its signal
+        _last_interrupt["signal"] = signal.SIGINT  # the next command starts from Ctrl-C's status
     parser.print_help()
     return 2
 

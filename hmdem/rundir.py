@@ -83,6 +83,20 @@ def umask_mode(base: int) -> int:
     return base & ~current_umask()
 
 
+def partial_directory(final: Path) -> Path:
+    """A new empty sibling of ``final`` to fill before renaming it to ``final``: hidden
+    (``.<name>.partial-XXXX``, which sweeps do not read as runs), with the umask's mode."""
+    final = Path(final)
+    final.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.partial-", dir=final.parent))
+    try:
+        os.chmod(tmp, umask_mode(0o777))
+    except BaseException:
+        tmp.rmdir()
+        raise
+    return tmp
+
+
 @contextmanager
 def atomic_run_directory(final: Path):
     """Yield a temporary sibling directory; rename it to ``final`` when the block completes.
@@ -91,10 +105,8 @@ def atomic_run_directory(final: Path):
     finished run is then renamed ``<final>.unsaved-XXXX`` rather than lost or merged (a sweep
     does not read it as a run)."""
     final = Path(final)
-    final.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.partial-", dir=final.parent))
+    tmp = partial_directory(final)
     try:
-        os.chmod(tmp, umask_mode(0o777))
         yield tmp
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)

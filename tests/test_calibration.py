@@ -443,24 +443,29 @@ def test_interrupted_loading_keeps_the_curve_and_its_elastic_constants(small_bia
     assert len(O.bodies) == 0
 
 
-@pytest.mark.yade
-def test_compaction_sigterm_is_one_line_exit_143_nothing_written(tmp_path):
-    # a batch system's SIGTERM during compaction: no traceback, exit 128 + 15, no packing file
+def sigterm_once_stderr_shows(args, text):
+    """Run ``python -m ARGS``, send SIGTERM once its stderr shows ``text`` (the command is under
+    way, its handler in place) and return (exit status, whole stderr)."""
     import signal
     import subprocess
     import sys
 
     from conftest import popen_interruptible
 
-    out = tmp_path / "pk.npz"
-    proc = popen_interruptible([sys.executable, "-m", "hmdem.dem.compaction", "--out", str(out)],
-                               stdout=subprocess.DEVNULL)
+    proc = popen_interruptible([sys.executable, "-m", *args], stdout=subprocess.DEVNULL)
     seen = ""
-    while "cycles" not in seen and proc.poll() is None:  # the bar is up: the CLI's handler is in place
+    while text not in seen and proc.poll() is None:
         seen += proc.stderr.read(1)
     proc.send_signal(signal.SIGTERM)
-    err = seen + proc.communicate(timeout=120)[1]
-    assert proc.returncode == 143
+    rest = proc.communicate(timeout=120)[1]
+    return proc.returncode, seen + rest
+
+
+@pytest.mark.yade
+def test_compaction_sigterm_is_one_line_exit_143_nothing_written(tmp_path):
+    # a batch system's SIGTERM during compaction: no traceback, exit 128 + 15, no packing file
+    code, err = sigterm_once_stderr_shows(["hmdem.dem.compaction", "--out", str(tmp_path / "pk.npz")], "cycles")
+    assert code == 143
     assert err.rstrip().splitlines()[-1] == "python -m hmdem.dem.compaction: interrupted; the results in " \
                                             "progress were not written"
     assert "Traceback" not in err and list(tmp_path.iterdir()) == []
@@ -470,22 +475,11 @@ def test_compaction_sigterm_is_one_line_exit_143_nothing_written(tmp_path):
 def test_darcy_sigterm_writes_the_stresses_done_and_exits_143(tmp_path):
     # a batch system's SIGTERM after the first stress of a long sweep: exit 128 + 15 and a valid
     # run directory with the stresses finished
-    import signal
-    import subprocess
-    import sys
-
-    from conftest import popen_interruptible
-
     out = tmp_path / "da"
     stresses = ",".join(f"{s:g}" for s in np.linspace(1e5, 2e6, 12))
-    proc = popen_interruptible([sys.executable, "-m", "hmdem.calibrate", "darcy", "--n", "300", "--stresses",
-                                stresses, "--out", str(out)], stdout=subprocess.DEVNULL)
-    seen = ""
-    while "[1/12]" not in seen and proc.poll() is None:
-        seen += proc.stderr.read(1)
-    proc.send_signal(signal.SIGTERM)
-    err = seen + proc.communicate(timeout=120)[1]
-    assert proc.returncode == 143, err[-2000:]
+    code, err = sigterm_once_stderr_shows(["hmdem.calibrate", "darcy", "--n", "300", "--stresses", stresses,
+                                           "--out", str(out)], "[1/12]")
+    assert code == 143, err[-2000:]
     s = json.loads((out / "summary.json").read_text())
     assert s["status"] == "interrupted" and 1 <= len(s["results"]) < 12
     assert len((out / "permeability.csv").read_text().splitlines()) == len(s["results"]) + 2

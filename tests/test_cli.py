@@ -137,15 +137,18 @@ def test_run_directories_and_replaced_files_follow_the_umask(tmp_path):
     import stat
 
     from hmdem.rundir import atomic_run_directory, write_text_atomic
+    from hmdem.sweep.packed import pack_directory, unpack_directory
 
     umask = os.umask(0o027)
     try:
         with atomic_run_directory(tmp_path / "run") as tmp:
             (tmp / "summary.json").write_text("{}")
         write_text_atomic(tmp_path / "manifest.json", "{}")
+        unpack_directory(pack_directory(tmp_path / "run"), tmp_path / "from_a_worker")  # a sweep's Dask path
     finally:
         os.umask(umask)
     assert stat.S_IMODE((tmp_path / "run").stat().st_mode) == 0o750
+    assert stat.S_IMODE((tmp_path / "from_a_worker").stat().st_mode) == 0o750
     assert stat.S_IMODE((tmp_path / "manifest.json").stat().st_mode) == 0o640
 
 

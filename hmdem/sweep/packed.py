@@ -11,7 +11,7 @@ import tarfile
 import tempfile
 from pathlib import Path
 
-from ..rundir import umask_mode
+from ..rundir import partial_directory
 from .grid import SweepPoint
 from .runner import cli_arguments, run_point
 
@@ -28,10 +28,8 @@ def pack_directory(path: Path) -> bytes:
 def unpack_directory(data: bytes, final: Path) -> None:
     """Extract ``data`` to a temporary sibling of ``final``, then rename it to ``final``."""
     final = Path(final)
-    final.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.partial-", dir=final.parent))
+    tmp = partial_directory(final)
     try:
-        os.chmod(tmp, umask_mode(0o777))
         with tarfile.open(fileobj=io.BytesIO(data)) as tar:
             members = tar.getmembers()
             for member in members:  # a run directory is flat: plain files with plain names
