@@ -1,5 +1,6 @@
 import signal
 import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -20,6 +21,18 @@ def popen_interruptible(cmd, **kwargs):
         kwargs.setdefault(stream, subprocess.PIPE)
     return subprocess.Popen(cmd, text=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
                             **kwargs)
+
+
+def sigterm_once_stderr_shows(args, text):
+    """Run ``python -m ARGS``, send SIGTERM once its stderr shows ``text`` (the command is under
+    way, its handler in place) and return (exit status, whole stderr)."""
+    proc = popen_interruptible([sys.executable, "-m", *args], stdout=subprocess.DEVNULL)
+    seen = ""
+    while text not in seen and proc.poll() is None:
+        seen += proc.stderr.read(1)
+    proc.send_signal(signal.SIGTERM)
+    rest = proc.communicate(timeout=120)[1]
+    return proc.returncode, seen + rest
 
 
 def run_case(name, **setup_changes):

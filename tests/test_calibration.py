@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from conftest import sigterm_once_stderr_shows
 from hmdem.calibrate import main
 from hmdem.coupling.apertures import ApertureLaw
 from hmdem.coupling.darcy import darcy_network, packing_permeability, solve_darcy
@@ -441,24 +442,6 @@ def test_interrupted_loading_keeps_the_curve_and_its_elastic_constants(small_bia
     from yade import O
 
     assert len(O.bodies) == 0
-
-
-def sigterm_once_stderr_shows(args, text):
-    """Run ``python -m ARGS``, send SIGTERM once its stderr shows ``text`` (the command is under
-    way, its handler in place) and return (exit status, whole stderr)."""
-    import signal
-    import subprocess
-    import sys
-
-    from conftest import popen_interruptible
-
-    proc = popen_interruptible([sys.executable, "-m", *args], stdout=subprocess.DEVNULL)
-    seen = ""
-    while text not in seen and proc.poll() is None:
-        seen += proc.stderr.read(1)
-    proc.send_signal(signal.SIGTERM)
-    rest = proc.communicate(timeout=120)[1]
-    return proc.returncode, seen + rest
 
 
 @pytest.mark.yade

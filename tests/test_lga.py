@@ -15,7 +15,7 @@ import time
 import numpy as np
 import pytest
 
-from conftest import popen_interruptible
+from conftest import popen_interruptible, sigterm_once_stderr_shows
 from sph_bridge import surfaces
 from sph_bridge.lga import automaton, channels, rules, studies
 from sph_bridge.lga.cli import main as lga_main
@@ -468,6 +468,48 @@ def test_workers_do_not_change_the_numbers(tmp_path, monkeypatch):
     assert calls == [2]  # the serial run did not use workers, the other ran on two
     assert runs["1"] == runs["2"]
     assert [len(p["drives"]) for p in runs["2"][0]["points"]] == [2, 2]
+
+
+def _worker_lost_on_job_0(conn, slot, *shared):
+    """A worker the system kills (SIGKILL, as the out-of-memory killer sends) when it runs job 0."""
+    from sph_bridge.lga import pool
+
+    if slot == 0:
+        os.kill(os.getpid(), signal.SIGKILL)
+    pool._run_channel(conn, slot, *shared)
+
+
+def test_a_lost_worker_fails_the_run_and_keeps_the_other_channels(tmp_path, monkeypatch):
+    # a worker killed outright loses only its own channel: the run is "failed" (exit status 1, not
+    # an interrupt's 130), says which channel and signal, and writes the other channel whole
+    from sph_bridge.lga import pool
+
+    monkeypatch.setattr(pool, "_run_channel", _worker_lost_on_job_0)  # pickled by name into the workers
+    out = tmp_path / "run"
+    assert lga_main(["permeability", "--hurst", "0.5", "--surfaces", "1", "--nx", "104", "--ny", "8", "--steps",
+                     "200", "--relative-roughness", "0.741", "--relative-roughness", "0.417", "--quiet",
+                     "--workers", "2", "--out", str(out)]) == 1
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "failed"
+    assert summary["status_message"] == "channel 0's worker was killed by SIGKILL (the out-of-memory killer?)"
+    assert [len(p["drives"]) for p in summary["points"]] == [2]
+    assert (out / "config.toml").exists() and (out / "timeseries.csv").exists()
+
+
+def test_sigterm_stops_the_workers_and_keeps_their_drives(tmp_path):
+    # a batch system's SIGTERM reaches the main process (the workers ignore it) once the workers
+    # have run thousands of steps ("k/" on the bar): every running channel sends back what it ran,
+    # the directory is valid and the exit status is 128 + 15
+    out = tmp_path / "run"
+    code, err = sigterm_once_stderr_shows(["sph_bridge", "lga", "permeability", "--hurst", "0.5", "--surfaces",
+                                           "1", "--nx", "296", "--ny", "45", "--workers", "2", "--out", str(out)],
+                                          "k/")
+    assert code == 143, err
+    assert "Traceback" not in err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and summary["status_message"] == ""
+    assert (out / "config.toml").exists()
+    assert len((out / "timeseries.csv").read_text().splitlines()) > 1  # the workers' rows came back
 
 
 def test_reduced_study_run_directory(reduced_study):

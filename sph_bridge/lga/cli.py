@@ -14,12 +14,14 @@ delta_av/(2 y_max) = 1.35, 1.7, 2.4 are 0.741, 0.588, 0.417. ``--g`` is the forc
 (default: drives chosen for low Mach numbers); ``--steps`` the averaging steps per drive
 (default: 30 slowest-mode relaxation times). Every directory holds config.toml, summary.json,
 timeseries.csv, PNG figures and field.vtu (ParaView). Bad input: one line, exit status 2.
-Ctrl-C writes what was averaged, with status "interrupted".
+Ctrl-C writes what was averaged, with status "interrupted"; a worker process lost (killed) leaves
+the other channels whole, with status "failed" and exit status 1.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
@@ -156,16 +158,20 @@ def run_directory(args, config: dict, summary: dict, timeseries: list, write_fig
 
 def run_channels(args, channel_drives, plan_of) -> str:
     """Run each (name, channel, forcings), in turn or on ``args.workers`` processes, under one
-    progress bar; returns the status."""
+    progress bar; returns the status: "interrupted" after Ctrl-C or SIGTERM, else "failed" if a
+    worker was lost (``args.status_message`` says which), else "finished"."""
     total = sum(plan_of(ch).steps(len(forcings)) for _, ch, forcings in channel_drives)
     bar = Progress(args, total, channels=len(channel_drives))
     jobs = [(channel, forcings, plan_of(channel), args.density, args.seed + k)
             for k, (_, channel, forcings) in enumerate(channel_drives)]
     workers = min(getattr(args, "workers", 1), len(jobs))
     series = [[] for _ in jobs]
-    stopped = False
+    stopped, lost = False, []
     if workers > 1:
-        stopped, series = run_in_workers(jobs, workers, bar, bar.channel_done)
+        try:
+            stopped, series, lost = run_in_workers(jobs, workers, bar, bar.channel_done)
+        except KeyboardInterrupt:  # before the pool took over the signals: no channel has started
+            stopped = True
     else:
         try:
             for k, (channel, *run_args) in enumerate(jobs):
@@ -175,7 +181,10 @@ def run_channels(args, channel_drives, plan_of) -> str:
             stopped = True
     args.timeseries = [(s[0], name, *s[1:]) for (name, _, _), rows in zip(channel_drives, series) for s in rows]
     bar.close()
-    return "interrupted" if stopped else "finished"
+    args.status_message = "; ".join(lost)
+    for line in lost:
+        print(f"python -m sph_bridge lga: {line}; its channel has no results", file=sys.stderr)
+    return "interrupted" if stopped else "failed" if lost else "finished"
 
 
 def plan_for(args):
@@ -188,7 +197,8 @@ def common_config(args) -> dict:
 
 
 def finish(args, status: str, started: float, summary: dict) -> dict:
-    return {"case": args.command, "status": status, "wall_time_s": time.perf_counter() - started, **summary}
+    return {"case": args.command, "status": status, "status_message": getattr(args, "status_message", ""),
+            "wall_time_s": time.perf_counter() - started, **summary}
 
 
 # --- poiseuille ---------------------------------------------------------------------------

@@ -12,8 +12,14 @@ shared stop flag at every progress report. Workers ignore SIGINT and SIGTERM (a 
 signals every process of a job); while they run, the main process's Ctrl-C or SIGTERM only
 raises the flag, and every running worker sends back the drives it finished plus its partial
 window, as a serial run keeps them. A worker stops too if the main process is gone. A worker
-killed outright loses its channel (the run is then "interrupted"); an error in a worker is
-raised again in the main process.
+killed outright (the kernel's out-of-memory killer, say) loses its channel: the others run on,
+and the run is then "failed", with the lost channels named. An error in a worker is raised
+again in the main process.
+
+A worker inherits its ignored signals through exec, so the main process ignores them while it
+starts one: a signal in that window is lost. The window is the fork and exec alone (~ms): the
+channel goes to the worker through its pipe afterwards, not in the process's start-up data,
+whose write would wait for the new interpreter to read it.
 """
 
 from __future__ import annotations
@@ -35,12 +41,13 @@ def default_workers() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
-def _run_channel(conn, slot: int, steps_done, stop, channel, forcings, plan, density: float, seed: int) -> None:
-    """Worker: one channel's drives; sends ("ok", results, timeseries rows, interrupted) or
-    ("error", traceback) back."""
+def _run_channel(conn, slot: int, steps_done, stop) -> None:
+    """Worker: receives its job (channel, forcings, plan, density, seed), runs the channel's
+    drives and sends ("ok", results, timeseries rows, interrupted) or ("error", traceback) back."""
     for sig in STOP_SIGNALS:
         signal.signal(sig, signal.SIG_IGN)  # the main process decides when to stop
     parent = os.getppid()
+    channel, forcings, plan, density, seed = conn.recv()
 
     def report(n: int) -> None:
         steps_done[slot] += n
@@ -62,12 +69,21 @@ def _run_channel(conn, slot: int, steps_done, stop, channel, forcings, plan, den
     conn.close()
 
 
-def run_in_workers(jobs, workers: int, progress, channel_done=lambda: None) -> tuple[bool, list[list]]:
+def lost_worker(k: int, exitcode: int | None) -> str:
+    """What became of job ``k``'s worker, for the run's status message."""
+    if exitcode is not None and exitcode < 0:
+        name = signal.Signals(-exitcode).name
+        hint = " (the out-of-memory killer?)" if -exitcode == signal.SIGKILL else ""
+        return f"channel {k}'s worker was killed by {name}{hint}"
+    return f"channel {k}'s worker ended (exit code {exitcode}) without sending its results"
+
+
+def run_in_workers(jobs, workers: int, progress, channel_done=lambda: None) -> tuple[bool, list[list], list[str]]:
     """Run ``jobs`` = [(channel, forcings, plan, density, seed)] on up to ``workers`` processes
     and set each channel's ``results``; ``progress(steps)`` is called with the steps done since
     its last call and ``channel_done()`` as each channel completes. Returns whether the run was
-    interrupted (Ctrl-C or SIGTERM in the main process, or a worker lost) and each job's
-    timeseries rows, in job order."""
+    interrupted (Ctrl-C or SIGTERM in the main process), each job's timeseries rows in job order,
+    and a line for each worker lost (its channel has no results)."""
     context = multiprocessing.get_context("spawn")
     steps_done = context.RawArray("q", len(jobs))
     stop = context.RawValue("b", 0)
@@ -80,7 +96,8 @@ def run_in_workers(jobs, workers: int, progress, channel_done=lambda: None) -> t
     waiting = sorted(range(len(jobs)), key=cost, reverse=True)
     running = {}  # job index -> (process, connection)
     reported = 0
-    incomplete = False
+    stopped_early = False
+    lost = []
 
     def raise_stop(signum, frame):
         record_interrupt(signum)  # the exit status names the signal
@@ -91,8 +108,8 @@ def run_in_workers(jobs, workers: int, progress, channel_done=lambda: None) -> t
         while waiting or running:
             while waiting and len(running) < workers and not stop.value:
                 k = waiting.pop(0)
-                receive, send = context.Pipe(duplex=False)
-                process = context.Process(target=_run_channel, args=(send, k, steps_done, stop, *jobs[k]))
+                conn, worker_end = context.Pipe()
+                process = context.Process(target=_run_channel, args=(worker_end, k, steps_done, stop))
                 for sig in STOP_SIGNALS:  # ignored from its first instruction (inherited through exec)
                     signal.signal(sig, signal.SIG_IGN)
                 try:
@@ -100,8 +117,12 @@ def run_in_workers(jobs, workers: int, progress, channel_done=lambda: None) -> t
                 finally:
                     for sig in STOP_SIGNALS:
                         signal.signal(sig, raise_stop)
-                send.close()
-                running[k] = (process, receive)
+                worker_end.close()
+                try:
+                    conn.send(jobs[k])  # waits for the new interpreter to read it, signals handled
+                except OSError:  # it died before reading: the poll below finds it lost
+                    pass
+                running[k] = (process, conn)
             if stop.value:
                 waiting.clear()
             time.sleep(POLL_SECONDS)
@@ -121,16 +142,16 @@ def run_in_workers(jobs, workers: int, progress, channel_done=lambda: None) -> t
                 if message[0] == "error":
                     raise RuntimeError(f"channel {k} failed in its worker process:\n{message[1]}")
                 if message[0] == "lost":
-                    incomplete = True
+                    lost.append(lost_worker(k, process.exitcode))
                     continue
                 _, jobs[k][0].results, series[k], stopped = message
-                incomplete |= stopped  # only when the flag was up or the main process gone
+                stopped_early |= stopped  # only when the flag was up or the main process gone
                 if not stopped:
                     channel_done()
             total = sum(steps_done)
             progress(total - reported)
             reported = total
-        interrupted = incomplete or stop.value != 0
+        interrupted = stopped_early or stop.value != 0
     finally:
         stop.value = 1  # on an error, the other workers stop at their next report
         for process, _ in running.values():
@@ -139,4 +160,4 @@ def run_in_workers(jobs, workers: int, progress, channel_done=lambda: None) -> t
                 process.terminate()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-    return interrupted, series
+    return interrupted, series, lost
