@@ -117,7 +117,8 @@ class _BiaxialProgress:
         if self.loading is None:
             self.compact.close()
             self.loading = self.tqdm(total=round(100 * self.max_strain, 3), unit="%", desc="loading", file=sys.stderr,
-                                bar_format="{desc}: {n:.2f}/{total:.2f} %|{bar}| [{elapsed}<{remaining}] {postfix}")
+                                     delay=1e-9,  # as CompactionBar's: prints once it is ours to close
+                                     bar_format="{desc}: {n:.2f}/{total:.2f} %|{bar}| [{elapsed}<{remaining}] {postfix}")
         now = time.perf_counter()
         if now - self.last >= self.every_s or ea >= self.max_strain:
             self.last = now

@@ -36,7 +36,9 @@ class CompactionBar:
 
     def __call__(self, cycles: int, stresses: np.ndarray) -> None:
         if self.bar is None:  # opened at the first report, so that a closed bar can start again
-            self.bar = self.tqdm(desc="compaction", unit=" cycles", file=sys.stderr,
+            # delay: it prints at its first refresh, once it is ours to close (an interrupt inside
+            # the constructor's own print would leave the line unended)
+            self.bar = self.tqdm(desc="compaction", unit=" cycles", file=sys.stderr, delay=1e-9,
                                  bar_format="{desc}: {n} cycles [{elapsed}]{postfix}")
         now = time.perf_counter()
         if now - self.last >= self.every_s:
