@@ -25,7 +25,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from hmdem.coupling.model import CoupledFlowModel  # noqa: E402
-from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, start_grains  # noqa: E402
+from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario  # noqa: E402
+from hmdem.dem.runs import start_grains  # noqa: E402
 from hmdem.flow.grain_forces import pressure_force_matrix  # noqa: E402
 from hmdem.network.network import pipes_touching  # noqa: E402
 from hmdem.network.packing import DiscPacking  # noqa: E402

@@ -23,7 +23,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from hmdem.coupling.apertures import ApertureLaw  # noqa: E402
 from hmdem.coupling.model import CoupledFlowModel  # noqa: E402
-from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, port_pipes, start_grains  # noqa: E402
+from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, port_pipes  # noqa: E402
+from hmdem.dem.runs import start_grains  # noqa: E402
 from hmdem.flow.diagnostics import early_peak  # noqa: E402
 from hmdem.network.packing import GRAIN_DENSITY  # noqa: E402
 from hmdem.report import radial_pattern_dimension  # noqa: E402

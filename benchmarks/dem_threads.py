@@ -25,7 +25,8 @@ def measure(threads: int, cycles: int) -> dict:
     sys.path.insert(0, str(ROOT))
     import numpy as np
 
-    from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, start_grains
+    from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario
+    from hmdem.dem.runs import start_grains
 
     grains = start_grains(build_radial_scenario(RADIAL_CASES["A1"]), threads=threads)
     push = np.zeros((len(grains.radii), 2))

@@ -47,7 +47,8 @@ def sample(discs: int, seed: int):
 
 def run(discs: int, seed: int) -> str:
     from hmdem.coupling.model import CoupledFlowModel
-    from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, start_grains
+    from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario
+    from hmdem.dem.runs import start_grains
     from hmdem.flow.diagnostics import early_peak
 
     start = time.time()

@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from b3_port import VARIANTS, variant_scenario  # noqa: E402
 from hmdem.coupling.micromechanics import energy_partition  # noqa: E402
 from hmdem.coupling.model import CoupledFlowModel  # noqa: E402
-from hmdem.coupling.radial import start_grains  # noqa: E402
+from hmdem.dem.runs import start_grains  # noqa: E402
 
 KPA, UJ = 1e3, 1e-6
 

@@ -31,7 +31,8 @@ from hmdem.coupling.model import CoupledFlowModel, PVEvaluation, replica_for  # 
 from hmdem.coupling.pockets import PocketNewton, trapped_pockets  # noqa: E402
 from hmdem.cli import local_damping, non_negative_int, positive_int  # noqa: E402
 from hmdem.coupling.quasi_newton import InterfaceQuasiNewton  # noqa: E402
-from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, start_grains  # noqa: E402
+from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario  # noqa: E402
+from hmdem.dem.runs import start_grains  # noqa: E402
 from hmdem.dem.assembly import DiscAssembly  # noqa: E402
 from hmdem.network.packing import DiscPacking  # noqa: E402
 

@@ -264,9 +264,10 @@ CSV_KEYS = ("target_stress", "confining_stress", "permeability", "kozeny_carman"
 
 def run_darcy_command(args, argv) -> int:
     from .coupling.apertures import ApertureLaw
-    from .coupling.darcy import PAPER_PERMEABILITY, PAPER_STRESS, packing_permeability, permeability_sweep
+    from .coupling.darcy import PAPER_PERMEABILITY, PAPER_STRESS
     from .coupling.radial import default_huang_packing_path
     from .dem.compaction import CompactionBar
+    from .dem.runs import permeability_sweep, stored_permeability
 
     path = args.packing or Path(str(default_huang_packing_path()))
     packing = read_packing(path)
@@ -298,7 +299,7 @@ def run_darcy_command(args, argv) -> int:
     if status == "interrupted":
         print(f"{PROG}: interrupted after {len(sweep)} of {len(args.stresses)} stresses; writing those",
               file=sys.stderr)
-    stored = packing_permeability(packing, law, args.contact_gap)
+    stored = stored_permeability(packing, law, args.contact_gap)
     rows = [r.row() for r in sweep]
     for r in rows:
         r["ratio_to_kozeny_carman"] = r["permeability"] / r["kozeny_carman"]

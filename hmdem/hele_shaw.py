@@ -269,7 +269,8 @@ def run_radial(args) -> int:
 
     from .coupling.model import CoupledFlowModel
     from .coupling.output import write_radial_run
-    from .coupling.radial import RADIAL_CASES, build_radial_scenario, start_grains
+    from .coupling.radial import RADIAL_CASES, build_radial_scenario
+    from .dem.runs import start_grains
 
     packing = None if args.packing is None else read_packing(args.packing)
     if args.one_way_volume is not None and not args.one_way:

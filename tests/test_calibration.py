@@ -123,8 +123,8 @@ def test_contact_forces_set_eq13_apertures_of_the_shipped_packing():
     pk = DiscPacking.load(default_huang_packing_path())
     law = ApertureLaw()
     m = darcy_network(pk).n_pipes
-    k_a0 = packing_permeability(pk, law, forces=np.full(m, 1e-12 * law.half_aperture_force)).permeability
-    k_half = packing_permeability(pk, law, forces=np.full(m, law.half_aperture_force)).permeability
+    k_a0 = packing_permeability(pk, lambda pairs: np.full(m, 1e-12 * law.half_aperture_force), law).permeability
+    k_half = packing_permeability(pk, lambda pairs: np.full(m, law.half_aperture_force), law).permeability
     assert k_half / k_a0 == pytest.approx(0.125, rel=1e-9)
     # ... and with a0 everywhere k is the network's a0^3 / 12 scale: between 0.1x and 10x of the
     # paper's 7.43e-13 (a sign, power or unit slip would miss by orders of magnitude)
@@ -204,14 +204,14 @@ class _Called(Exception):
 
 def test_contact_flags_reach_the_biaxial_and_darcy_tests(tmp_path, monkeypatch):
     # decisions #74: the flags arrive as the tests' keyword arguments (no YADE run here)
-    import hmdem.coupling.darcy as darcy
     import hmdem.dem.biaxial as biaxial
+    import hmdem.dem.runs as runs
 
     def stop(*args, **kwargs):
         raise _Called(kwargs)
 
     monkeypatch.setattr(biaxial, "run_biaxial", stop)
-    monkeypatch.setattr(darcy, "permeability_sweep", stop)
+    monkeypatch.setattr(runs, "permeability_sweep", stop)
     with pytest.raises(_Called) as call:
         main(["biaxial", "--contact-stiffness", "8.9e7", "--friction", "0.85", "--stiffness-ratio", "2",
               "--out", str(tmp_path / "bi"), "--quiet"])
@@ -225,18 +225,18 @@ def test_contact_flags_reach_the_biaxial_and_darcy_tests(tmp_path, monkeypatch):
 
 def test_interrupted_darcy_sweep_writes_the_stresses_done(tmp_path, monkeypatch, capsys):
     # Ctrl-C (or SIGTERM) during the third compaction: a valid run directory with the two
-    # stresses done, the stored packing's row, status "interrupted", exit 130 (no YADE here)
-    import hmdem.coupling.darcy as darcy
+    # stresses done, the stored packing's row, status "interrupted", exit 130 (no compaction here)
+    import hmdem.dem.runs as runs
 
     def two_then_ctrl_c(stresses, *args, progress, **kwargs):
         pk = DiscPacking.load(default_huang_packing_path())
         for k, stress in enumerate(stresses[:2]):
-            res = packing_permeability(pk)
+            res = runs.stored_permeability(pk)
             res.extra = {"target_stress": float(stress), "seconds": 0.0}
             progress(k, stress, res)
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(darcy, "permeability_sweep", two_then_ctrl_c)
+    monkeypatch.setattr(runs, "permeability_sweep", two_then_ctrl_c)
     out = tmp_path / "da"
     assert main(["darcy", "--stresses", "1e5,1.4e5,5e5", "--out", str(out), "--quiet"]) == 130
     assert "interrupted after 2 of 3 stresses" in capsys.readouterr().err
@@ -323,7 +323,7 @@ def test_unreadable_packing_is_refused(tmp_path, capsys):
 def test_yade_contact_forces_are_k_n_times_the_stored_overlaps():
     # digest §15.1: k_n = 7.49e7 N/m for any radius pair; after one step each contact of the
     # stored packing carries k_n x overlap, and near-contacts (gap > 0) carry nothing
-    from hmdem.coupling.darcy import packing_contact_forces
+    from hmdem.dem.runs import packing_contact_forces
 
     pk = DiscPacking.load(default_huang_packing_path())
     net = darcy_network(pk)
@@ -344,13 +344,14 @@ def test_near_contact_gap_038_gives_the_papers_network_and_permeability():
     # the pipe count) and, independently, that permeability within H9's 5 %. The default 0.08 (the
     # Lenormand packing's) gives 3,047 pipes, 1,653 domains and a k 7 % higher.
     from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, radial_network
+    from hmdem.dem.runs import stored_permeability
 
     pk = DiscPacking.load(default_huang_packing_path())
     net = radial_network(pk, 0.38)
     assert net.n_pipes == pytest.approx(3490, rel=0.01)
     assert net.n_domains == pytest.approx(2096, rel=0.01)
     assert len(net.outlet_domains) == pytest.approx(141, rel=0.03)
-    assert packing_permeability(pk, contact_gap=0.38).permeability == pytest.approx(7.43e-13, rel=0.05)
+    assert stored_permeability(pk, contact_gap=0.38).permeability == pytest.approx(7.43e-13, rel=0.05)
     # radial --contact-gap builds the coupled runs on that network and records the gap (config.toml)
     sc = build_radial_scenario(RADIAL_CASES["B3"], contact_gap=0.38)
     assert sc.net.n_pipes == net.n_pipes and sc.case.contact_gap == 0.38
@@ -360,7 +361,7 @@ def test_near_contact_gap_038_gives_the_papers_network_and_permeability():
 def test_darcy_sweep_permeability_falls_with_confining_stress():
     # a reduced sample (200 discs): from 0.1 to 2.1 MPa the porosity drops and the contact forces
     # rise ~20x, closing the Eq. 13 apertures; both lower k, so k must fall, as must KC
-    from hmdem.coupling.darcy import permeability_sweep
+    from hmdem.dem.runs import permeability_sweep
 
     lo, hi = permeability_sweep((0.1e6, 2.1e6), n=200, size=0.47e-3)
     assert lo.confining_stress == pytest.approx(0.1e6, rel=0.01)

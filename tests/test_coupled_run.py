@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from hmdem.coupling.model import CoupledFlowModel
-from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario, start_grains
+from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario
+from hmdem.dem.runs import start_grains
 from hmdem.flow.diagnostics import early_peak
 
 pytestmark = pytest.mark.yade
@@ -45,7 +46,7 @@ def test_a_stiffer_sample_keeps_its_stress_and_runs_with_its_own_stiffness(small
     material = grains._O.bodies[grains.ids[0]].material
     assert material.frictionAngle == pytest.approx(np.arctan(0.8), rel=1e-12) and material.poisson == 0.5
     # before the settling cycles: the stored overlaps, read as the Darcy calibration reads them
-    from hmdem.coupling.darcy import packing_contact_forces
+    from hmdem.dem.runs import packing_contact_forces
     from hmdem.network.contact_graph import find_contacts
 
     def loaded(pk):

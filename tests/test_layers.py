@@ -45,3 +45,19 @@ def test_coupling_solver_core_does_not_import_yade():
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
+
+
+def test_no_solver_package_reaches_the_yade_adapter():
+    # the runtime check above sees only the paths it runs; a function-level `from ..dem import ...`
+    # elsewhere would bring YADE in when called. Only hmdem.dem (and the CLIs, benchmarks and
+    # scripts that drive it) may name the adapter or YADE
+    import re
+    from pathlib import Path
+
+    import hmdem
+
+    root = Path(hmdem.__file__).parent
+    reaching = re.compile(r"^\s*(from|import)\s+(\.\.?dem\b|hmdem\.dem\b|yade\b|\.\.?yade_env\b|hmdem\.yade_env\b)", re.M)
+    offenders = [str(path.relative_to(root)) for package in ("network", "flow", "coupling", "sweep")
+                 for path in sorted((root / package).rglob("*.py")) if reaching.search(path.read_text())]
+    assert offenders == []

@@ -20,7 +20,6 @@ gives exactly a^3 / (12 s). k does not depend on eta or dP.
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -33,7 +32,7 @@ from ..flow.fluids import conductance
 from ..network.boundaries import linear_flow_boundaries
 from ..network.contact_graph import NEAR_CONTACT_GAP
 from ..network.network import Network
-from ..network.packing import CONTACT_STIFFNESS, GRAIN_DENSITY, DiscPacking
+from ..network.packing import DiscPacking
 from .apertures import ApertureLaw
 from .geometry import contact_gaps
 from .radial import radial_network
@@ -141,18 +140,6 @@ def darcy_network(pk: DiscPacking, contact_gap: float = NEAR_CONTACT_GAP, band_r
     return net
 
 
-def packing_contact_forces(pk: DiscPacking, pairs: np.ndarray) -> np.ndarray:
-    """Normal contact force of each grain pair [N per m] in the packing as it is stored: the
-    packing is loaded into YADE (with the k_n it was compacted with) and its boundary grains fixed
-    (they replace the walls), and one DEM step creates the interactions; 0 for pairs not in contact."""
-    from ..dem.assembly import DiscAssembly
-
-    fixed = pk.fixed if len(pk.fixed) == len(pk.radii) else None
-    grains = DiscAssembly(pk.centres, pk.radii, k_n=pk.contact_stiffness, fixed=fixed)
-    grains.run(1)
-    return grains.normal_forces(pairs)
-
-
 def set_contact_apertures(net: Network, pk: DiscPacking, forces: np.ndarray, law: ApertureLaw) -> None:
     """Eq. 13 where the pipe's grains press on each other, Eq. 14 (a0 + lambda gap) elsewhere."""
     gap = contact_gaps(pk.centres, pk.radii, net.pipe_grains)
@@ -185,14 +172,14 @@ class PackingPermeability:
         return out
 
 
-def packing_permeability(pk: DiscPacking, law: ApertureLaw | None = None, contact_gap: float = NEAR_CONTACT_GAP,
-                         forces: np.ndarray | None = None) -> PackingPermeability:
-    """Network Darcy permeability of a packing at its stored state (``forces`` per network pipe
-    may be given; else they are read from YADE)."""
+def packing_permeability(pk: DiscPacking, contact_forces, law: ApertureLaw | None = None,
+                         contact_gap: float = NEAR_CONTACT_GAP) -> PackingPermeability:
+    """Network Darcy permeability of a packing at its stored state. ``contact_forces(pairs)``
+    gives the normal force of each grain pair (k, 2) [N per m], 0 where they are apart
+    (:func:`hmdem.dem.runs.stored_permeability` reads them from YADE)."""
     law = law or ApertureLaw()
     net = darcy_network(pk, contact_gap)
-    if forces is None:
-        forces = packing_contact_forces(pk, net.pipe_grains)
+    forces = np.asarray(contact_forces(net.pipe_grains), float)
     set_contact_apertures(net, pk, forces, law)
     flow = solve_darcy(net)
     phi2 = pk.porosity
@@ -207,27 +194,3 @@ def packing_permeability(pk: DiscPacking, law: ApertureLaw | None = None, contac
         mean_contact_force=float(forces[closed].mean()) if closed.any() else 0.0,
         mean_aperture=float(net.pipe_aperture[flowing].mean()), length=flow.length, height=flow.height,
         balance_error=flow.balance_error)
-
-
-def permeability_sweep(stresses=STRESSES, n: int = 1395, seed: int = 0, *, size: float = 1.25e-3,
-                       r_min: float = 13.0e-6, r_max: float = 21.6e-6, k_n: float = CONTACT_STIFFNESS,
-                       density: float = GRAIN_DENSITY, law: ApertureLaw | None = None,
-                       contact_gap: float = NEAR_CONTACT_GAP, progress=None,
-                       compaction_progress=None) -> list[PackingPermeability]:
-    """Compact the sample (same seed, hence the same initial seeding) to each confining stress
-    with :func:`hmdem.dem.compaction.compact_sample` and return the permeability at each.
-    ``progress(k, stress, result)`` is called after each stress, ``compaction_progress`` is
-    :func:`compact_sample`'s ``progress(cycles, wall_stresses)``."""
-    from ..dem.compaction import compact_sample
-
-    out = []
-    for k, stress in enumerate(stresses):
-        t0 = time.perf_counter()
-        pk = compact_sample(n, size, r_min, r_max, stress=float(stress), seed=seed, k_n=k_n, density=density,
-                            progress=compaction_progress)
-        res = packing_permeability(pk, law, contact_gap)
-        res.extra = {"target_stress": float(stress), "seconds": time.perf_counter() - t0}
-        out.append(res)
-        if progress is not None:
-            progress(k, stress, res)
-    return out

@@ -29,7 +29,6 @@ from .model import CouplingSetup
 AIR_VISCOSITY = 0.018 * CP
 # Sigma / L of Eq. 24: the paper's ~0.25 mm inlet perimeter on its 1.25 mm sample (digest §10.3)
 PAPER_SIGMA_OVER_LENGTH = 0.2
-SETTLE_CYCLES = 2000  # relaxation after loading the packing (contact shear history is not stored)
 
 
 def huang_fluids(viscosity_inv: float) -> FluidPair:
@@ -166,21 +165,6 @@ def port_pipes(net: Network) -> np.ndarray:
 def port_grains(net: Network) -> np.ndarray:
     """The grains around the inflow domains: the ends of their pipes."""
     return np.unique(net.pipe_grains[port_pipes(net)])
-
-
-def start_grains(sc: RadialScenario, threads: int | None = None):
-    """The YADE disc assembly of the scenario's packing, settled (at the default damping 0.7,
-    then the run's ``sc.coupling.dem_damping``); sets the stable DEM step.
-    ``threads``: YADE's OpenMP threads (None: as the process was started, else 1)."""
-    from ..dem.assembly import DiscAssembly
-
-    pk = sc.packing
-    grains = DiscAssembly(pk.centres, pk.radii, k_n=pk.contact_stiffness, ks_over_kn=sc.stiffness_ratio,
-                          friction=sc.friction, fixed=sc.fixed, density=sc.grain_density, threads=threads)
-    grains.run(SETTLE_CYCLES)
-    grains.damping = sc.coupling.dem_damping
-    sc.coupling.stable_dem_step = grains.timestep = grains.stable_timestep()
-    return grains
 
 
 def classify_radial_regime(n_opened_contacts: int, fractal_dimension: float) -> str:

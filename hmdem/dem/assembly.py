@@ -54,7 +54,10 @@ class DiscAssembly:
         self.k_n = k_n
         self.k_s = ks_over_kn * k_n
         self.friction = friction
-        self._index = {b: k for k, b in enumerate(self.ids)}
+        ids = np.asarray(self.ids, int)
+        self._grain_of_body = np.full(ids.max() + 1, -1, int)  # body id -> grain index, -1: not a disc
+        self._grain_of_body[ids] = np.arange(len(ids))
+        self._masses = np.array([O.bodies[i].state.mass for i in self.ids])  # fixed at creation
 
     @property
     def timestep(self) -> float:
@@ -225,10 +228,11 @@ class DiscAssembly:
     def _grain_pairs(self, ids) -> tuple[np.ndarray, np.ndarray]:
         """Grain index pairs (k, 2) of the disc-disc contacts among YADE body id pairs, in their
         order, and which of the id pairs those are (a mask)."""
-        index = self._index
-        disc = np.array([a in index and b in index for a, b in ids], bool)
-        pairs = np.array([(index[a], index[b]) for (a, b), keep in zip(ids, disc) if keep], int).reshape(-1, 2)
-        return pairs, disc
+        body = np.asarray(ids, int).reshape(-1, 2)
+        known = body < len(self._grain_of_body)
+        grain = np.where(known, self._grain_of_body[np.where(known, body, 0)], -1)
+        disc = np.all(grain >= 0, axis=1)
+        return grain[disc], disc
 
     def contact_forces(self) -> tuple[np.ndarray, np.ndarray]:
         """All real disc-disc contacts: grain index pairs (k, 2), i < j, and normal forces (k,)."""
@@ -253,8 +257,7 @@ class DiscAssembly:
         return out
 
     def masses(self) -> np.ndarray:
-        bodies = self._O.bodies
-        return np.array([bodies[i].state.mass for i in self.ids])
+        return self._masses.copy()
 
     def kinetic_energy(self) -> float:
         """Translational kinetic energy of the grains [J per m of depth]."""
