@@ -50,7 +50,7 @@ packing: setup
 	$(PY) -m hmdem.dem.packing --out hmdem/data/lenormand_packing.npz
 
 huang-packing: setup
-	$(PY) -m hmdem.dem.compaction --out hmdem/data/huang_packing.npz
+	$(PY) -m hmdem.dem.compaction --overwrite --out hmdem/data/huang_packing.npz
 
 clean:
 	rm -rf $(VENV) runs

@@ -6,8 +6,11 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
+import re
 import signal
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -23,6 +26,12 @@ class OneLineParser(argparse.ArgumentParser):
     """argparse parser whose errors are one line, prefixed by :attr:`command` (set by each CLI)."""
 
     command = "hmdem"
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        # argparse reads "-1e-4" as an option ("expected one argument"); as a number, it reaches
+        # the option's own check, which says what is allowed
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 
     def error(self, message):
         if message.startswith("argument "):
@@ -141,13 +150,18 @@ def new_run_directory(out: Path | None, name: str) -> Path:
 
 
 def check_out_parent(out: Path) -> None:
-    """An :class:`InputError` when ``--out`` would go through a file (its missing directories
-    are made when the results are written)."""
+    """An :class:`InputError` when ``--out`` would go through a file or where nothing can be
+    written (tried with an empty directory, removed at once); its missing directories are made
+    when the results are written, so a long run cannot fail there at its end."""
     ancestor = Path(out).absolute().parent
     while not ancestor.exists():
         ancestor = ancestor.parent
     if not ancestor.is_dir():
         raise InputError(f"--out: {str(ancestor)!r} is a file, not a directory")
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".hmdem-write-check-", dir=ancestor))
+    except OSError as exc:
+        raise InputError(f"--out: cannot write under {str(ancestor)!r} ({exc.strerror})") from None
 
 
 def read_packing(path: Path):

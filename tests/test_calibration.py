@@ -445,6 +445,19 @@ def test_interrupted_loading_keeps_the_curve_and_its_elastic_constants(small_bia
     assert len(O.bodies) == 0
 
 
+def test_compaction_keeps_an_existing_packing_unless_told(tmp_path, capsys):
+    # a calibrated packing is minutes of work: an existing --out is refused before compacting
+    # (make huang-packing passes --overwrite to regenerate the shipped file)
+    from hmdem.dem.compaction import main as compaction_main
+
+    (tmp_path / "calibrated.npz").write_bytes(b"keep")
+    with pytest.raises(SystemExit) as exc:
+        compaction_main(["--out", str(tmp_path / "calibrated.npz")])
+    assert exc.value.code == 2
+    assert "--overwrite" in capsys.readouterr().err
+    assert (tmp_path / "calibrated.npz").read_bytes() == b"keep"
+
+
 @pytest.mark.yade
 def test_compaction_sigterm_is_one_line_exit_143_nothing_written(tmp_path):
     # a batch system's SIGTERM during compaction: no traceback, exit 128 + 15, no packing file

@@ -63,6 +63,23 @@ def test_out_through_a_file_is_refused_before_the_run(tmp_path, capsys):
     assert [p.name for p in tmp_path.iterdir()] == ["file"]
 
 
+def test_out_where_nothing_can_be_written_is_refused_before_the_run(capsys):
+    # /proc takes no new directories, for root too: a run must not find that out at its end
+    assert main(["linear", "--case", "vf", "--out", "/proc/hmdem-test/run"]) == 2
+    assert capsys.readouterr().err.startswith("python -m hmdem.hele_shaw: --out: cannot write under '/proc'")
+
+
+@pytest.mark.parametrize("value", ["-1e-4", "-2.5E+3", "-.5"])
+def test_a_negative_number_in_any_notation_gets_the_options_own_message(value, capsys):
+    # argparse takes "-1e-4" for an option ("expected one argument"); the options' checks say
+    # what is allowed instead
+    with pytest.raises(SystemExit) as exc:
+        main(["linear", "--ca-star", value, "--out", "unused"])
+    assert exc.value.code == 2
+    assert capsys.readouterr().err.strip() == (f"python -m hmdem.hele_shaw: --ca-star: must be a finite number > 0, "
+                                               f"got {value!r}")
+
+
 def test_existing_out_is_refused(tmp_path, capsys):
     (tmp_path / "run").mkdir()
     assert main(["linear", "--out", str(tmp_path / "run")]) == 2

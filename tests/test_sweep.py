@@ -77,6 +77,7 @@ def test_axis_spec_gives_evenly_spaced_values_with_both_ends():
     (["--log-ca", "0:inf:3"], "--log-ca"),
     (["--seeds", "0"], "--seeds"),
     (["--workers", "-1"], "--workers"),
+    (["--scheduler", "notanaddress"], "--scheduler"),  # before the sweep directory is made
 ])
 def test_invalid_grid_specs_are_rejected_in_one_line(flags, named, tmp_path):
     out = tmp_path / "sweep"
@@ -86,6 +87,17 @@ def test_invalid_grid_specs_are_rejected_in_one_line(flags, named, tmp_path):
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("python -m hmdem.sweep: ") and named in lines[0]
     assert not out.exists()  # nothing written
+
+
+@pytest.mark.parametrize("out", ["a_file", "a_file/sweep", "/proc/hmdem-test/sweep"])
+def test_an_out_that_cannot_be_a_sweep_directory_is_one_line(out, tmp_path):
+    (tmp_path / "a_file").write_text("x")
+    proc = subprocess.run([sys.executable, "-m", "hmdem.sweep", "lenormand", "--out", out],
+                          capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("python -m hmdem.sweep: --out: ")
+    assert [p.name for p in tmp_path.iterdir()] == ["a_file"] and (tmp_path / "a_file").read_text() == "x"
 
 
 def test_a_sweep_directory_cannot_be_resumed_with_another_grid(tmp_path):

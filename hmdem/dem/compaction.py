@@ -158,12 +158,16 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=non_negative_int, default=0, help="seed of the radii and the seeding "
                                                                           "(default %(default)d)")
     add_contact_arguments(parser, friction=False)  # compaction is frictionless; the runs set mu
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace --out if it exists (make huang-packing regenerates the shipped file)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     if args.out.suffix != ".npz":  # numpy would append it, and the file would not be the one named
         parser.error(f"--out: must end in .npz, got {str(args.out)!r}")
     if args.out.is_dir():
         parser.error(f"--out: {str(args.out)!r} is a directory; name the packing file to write")
+    if args.out.exists() and not args.overwrite:  # a calibrated packing is minutes of work
+        parser.error(f"--out: {str(args.out)!r} already exists; choose a new file or add --overwrite")
     try:
         check_out_parent(args.out)
     except InputError as exc:

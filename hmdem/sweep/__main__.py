@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 from .. import __version__
-from ..cli import InputError, OneLineParser, dispatch, interrupted_status, positive_int, read_packing
+from ..cli import InputError, OneLineParser, check_out_parent, dispatch, interrupted_status, positive_int, read_packing
 
 PROG = "python -m hmdem.sweep"
 DEFAULT_LOG_M = "-5:2:5"
@@ -75,6 +75,18 @@ def write_tables(root: Path, rows: list[dict] | None = None) -> list[dict]:
     return rows
 
 
+def check_scheduler_address(address: str) -> None:
+    """An :class:`InputError` unless ``address`` reads as a Dask scheduler's (e.g. tcp://host:8786)."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    try:
+        protocol, location = parse_address(address)
+        if protocol in ("tcp", "tls"):
+            parse_host_port(location)
+    except ValueError as exc:
+        raise InputError(f"--scheduler: {exc}; expected an address such as tcp://host:8786") from None
+
+
 def run_lenormand(args) -> int:
     from .execute import run_sweep
     from .grid import lenormand_points, lenormand_spec
@@ -82,9 +94,15 @@ def run_lenormand(args) -> int:
 
     if args.packing is not None:
         read_packing(args.packing)  # a missing or unreadable file is one line, not a failure per point
+    if args.scheduler is not None:
+        check_scheduler_address(args.scheduler)
     out = args.out or Path("runs") / f"lenormand-{time.strftime('%Y%m%d-%H%M%S')}"
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out: {str(out)!r} is a file, not a sweep directory")
     if out.exists() and not (out / "manifest.json").is_file() and any(out.iterdir()):
         raise InputError(f"--out: {str(out)!r} exists and is not a sweep directory; choose a new one")
+    if not out.exists():
+        check_out_parent(out)
     spec = lenormand_spec(args.log_m, args.log_ca, args.seeds, args.packing)
     points = lenormand_points(args.log_m, args.log_ca, args.seeds)
     try:
@@ -95,6 +113,9 @@ def run_lenormand(args) -> int:
     interrupted = False
     try:
         counts = run_sweep(manifest, args.packing, args.workers, args.scheduler, progress=not args.quiet)
+    except OSError as exc:  # the scheduler cannot be reached: the sweep directory stays, resumable
+        print(f"{PROG}: --scheduler: {exc}; the sweep directory {str(out)!r} is kept for a re-run", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         interrupted = True
         manifest.reconcile()
