@@ -258,6 +258,25 @@ def test_yade_batch_runs_the_shipped_table_and_collect_aggregates_it(packing, tm
     assert (batch / "phase_diagram.png").is_file()
 
 
+@pytest.mark.yade
+def test_yade_script_interrupted_exits_130_with_one_line_and_a_valid_directory(tmp_path):
+    # Ctrl-C to `yade -n -x yade_scripts/hele_shaw_linear.py` (the default point takes ~20 s):
+    # the run's own status 130 (yade-batch logs it), one line naming the run, and the run
+    # directory written with status "interrupted" (it used to end in a RuntimeError traceback)
+    proc = popen_interruptible(["yade", "-n", "-x", str(ROOT / "yade_scripts" / "hele_shaw_linear.py")], cwd=tmp_path)
+    seen = ""
+    while "Running script" not in seen and proc.poll() is None:
+        seen += proc.stderr.read(1)
+    time.sleep(3.0)
+    proc.send_signal(signal.SIGINT)
+    err = proc.communicate(timeout=120)[1]
+    assert proc.returncode == 130, err[-2000:]
+    assert "Traceback" not in err
+    (run,) = (tmp_path / "runs" / "lenormand-batch").iterdir()
+    assert f"run {run.name} ended with exit status 130; run directory" in err
+    assert json.loads((run / "summary.json").read_text())["status"] == "interrupted"
+
+
 def test_collect_rejects_a_directory_without_runs(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "hmdem.sweep", "collect", str(tmp_path)], capture_output=True,
                           text=True)

@@ -39,6 +39,14 @@ def read_summary(run_dir: Path, finished_only: bool = True) -> dict | None:
     return None if finished_only and summary.get("status") in INCOMPLETE else summary
 
 
+class RunFailed(RuntimeError):
+    """A point's run that did not finish; ``exit_status`` is the run's own (130/143: interrupted)."""
+
+    def __init__(self, message: str, exit_status: int):
+        super().__init__(message)
+        self.exit_status = exit_status
+
+
 def run_point(point: SweepPoint, out: Path, packing: str | None = None, recorded_as: list[str] | None = None) -> dict:
     """Run one point into ``out`` (written atomically by the run itself); its summary.
 
@@ -61,5 +69,6 @@ def run_point(point: SweepPoint, out: Path, packing: str | None = None, recorded
     summary = read_summary(out, finished_only=False)
     if code != 0 or summary is None or summary.get("status") in INCOMPLETE:
         reason = (summary or {}).get("status_message")
-        raise RuntimeError(f"run {point.run_id} ended with exit status {code}" + (f": {reason}" if reason else ""))
+        raise RunFailed(f"run {point.run_id} ended with exit status {code}" + (f": {reason}" if reason else ""),
+                        code or 1)
     return summary
