@@ -358,6 +358,8 @@ def run_permeability(args) -> int:
     if "alpha" in summary:
         print(f"lga permeability: {status}; {len(points)} channels, fitted alpha = {summary['alpha']:.3f} +- "
               f"{summary['alpha_error']:.3f} (paper {studies.PAPER_ALPHA})")
+    else:
+        print(f"lga permeability: {status}; {len(points)} channel(s) finished, too few to fit alpha")
     print(f"run directory: {out}")
     return exit_status(status)
 
@@ -440,6 +442,8 @@ def run_nonlinear(args) -> int:
         print(f"lga nonlinear: {status}; Delta P/Q rises by {100 * summary['rough_drag_increase']:.1f} % (rough) and "
               f"{100 * summary['smooth_drag_increase']:.1f} % (smooth) over Re "
               f"{summary['rough_reynolds_range'][0]:.0f}-{summary['rough_reynolds_range'][1]:.0f}")
+    else:
+        print(f"lga nonlinear: {status}; {len(series)} of 2 channels have drives")
     print(f"run directory: {out}")
     return exit_status(status)
 
