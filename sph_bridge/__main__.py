@@ -434,7 +434,8 @@ def side_view(path: Path, sim, shape, summary: dict, ridge: bool) -> None:
         phi = np.linspace(0, 2 * math.pi, 400)
         x, z = shape.cap_radius * np.cos(phi), shape.cap_centre_z + shape.cap_radius * np.sin(phi)
         keep = z >= 0
-        ax.plot(x[keep] * 1e3, z[keep] * 1e3, "k-", lw=1, label=f"fitted sphere: {shape.fitted_angle_deg:.1f}°")
+        fitted = "circle" if summary.get("geometry") == "ridge" else "sphere"  # a ridge's section is a circle
+        ax.plot(x[keep] * 1e3, z[keep] * 1e3, "k-", lw=1, label=f"fitted {fitted}: {shape.fitted_angle_deg:.1f}°")
     ax.axhline(summary["young_laplace_height_m"] * 1e3, color="tab:green", ls="--", lw=1,
                label=f"Young-Laplace at {summary['target_contact_angle_deg']:g}°")
     if "puddle_height_m" in summary:

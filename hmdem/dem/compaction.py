@@ -193,7 +193,8 @@ def write_packing(args) -> int:
     with replaced_atomically(args.out) as tmp:  # a kill while writing leaves no part of a file
         pk.save(tmp)
     print(f"{len(pk.radii)} discs in {pk.box[0] * 1e3:.4f} x {pk.box[1] * 1e3:.4f} mm, porosity {pk.porosity:.4f}, "
-          f"{int(pk.fixed.sum())} fixed boundary grains, wall stress {pk.confining_stress / 1e6:.4f} MPa, "
+          f"{int(pk.fixed.sum())} grains touching a wall (stored as fixed; the runs fix the whole hull), "
+          f"wall stress {pk.confining_stress / 1e6:.4f} MPa, "
           f"k_n {pk.contact_stiffness:g} N/m, {time.perf_counter() - t0:.0f} s -> {args.out}")
     return 0
 
