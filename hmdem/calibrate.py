@@ -136,7 +136,7 @@ def plot_biaxial(path: Path, res) -> None:
     from .plots import plt
 
     ea = 100 * res.strain_axial
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.3))
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 5.2))
     a1.plot(ea, res.sigma1 / 1e3, label=r"$\sigma_1$")
     a1.plot(ea, res.sigma3 / 1e3, label=r"$\sigma_3$")
     a1.plot(ea, res.deviator / 1e3, label=r"$\sigma_1-\sigma_3$", lw=0.8)
@@ -150,7 +150,7 @@ def plot_biaxial(path: Path, res) -> None:
             label=f"peak {res.peak_sigma1 / 1e3:.1f} kPa, phi = {res.friction_angle:.1f} deg")
     a1.set_xlabel("axial strain [%]")
     a1.set_ylabel("stress [kPa]")
-    a1.legend(fontsize=7, loc="center right")
+    a1.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)  # below: no curve hidden
     a1.set_title(f"biaxial test, {res.n_grains} discs, sigma3 = {res.sigma3_target / 1e3:g} kPa", fontsize=9)
     a2.plot(ea, 100 * res.strain_volumetric, label="volumetric (area) strain")
     a2.plot(ea, 100 * res.strain_lateral, label="lateral strain")
@@ -158,7 +158,7 @@ def plot_biaxial(path: Path, res) -> None:
     a2.axhline(0, color="k", lw=0.5)
     a2.set_xlabel("axial strain [%]")
     a2.set_ylabel("strain [%] (compression > 0)")
-    a2.legend(fontsize=7)
+    a2.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
