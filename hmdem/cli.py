@@ -5,12 +5,12 @@ nothing written."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import re
 import signal
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -110,6 +110,17 @@ def _terminate(signum, frame):
     raise KeyboardInterrupt  # SIGTERM stops a run where Ctrl-C would, with the same partial results
 
 
+@contextlib.contextmanager
+def sigterm_as_interrupt():
+    """Inside: a SIGTERM stops the run as Ctrl-C does (and the exit status says 143), for code
+    that runs a command's work without :func:`dispatch` (the YADE scripts)."""
+    previous = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def interrupted_status() -> int:
     """Exit status of an interrupted command, the shell's 128 + the signal: 130 after Ctrl-C
     (SIGINT), 143 after a batch system's SIGTERM."""
@@ -143,7 +154,7 @@ def new_run_directory(out: Path | None, name: str) -> Path:
     """``--out`` or ``runs/<name>-<time>``; refuses an existing directory (runs never overwrite)
     and a path through a file, before any work is done."""
     out = out or Path("runs") / f"{name}-{time.strftime('%Y%m%d-%H%M%S')}"
-    if out.exists():
+    if exists(out):
         raise InputError(f"--out: {str(out)!r} already exists; choose a new run directory")
     check_out_parent(out)
     return out
@@ -154,14 +165,27 @@ def check_out_parent(out: Path) -> None:
     written (tried with an empty directory, removed at once); its missing directories are made
     when the results are written, so a long run cannot fail there at its end."""
     ancestor = Path(out).absolute().parent
-    while not ancestor.exists():
+    while not exists(ancestor):
         ancestor = ancestor.parent
     if not ancestor.is_dir():
         raise InputError(f"--out: {str(ancestor)!r} is a file, not a directory")
+    probe = ancestor / f".hmdem-write-check-{os.getpid()}-{time.monotonic_ns()}"
     try:
-        os.rmdir(tempfile.mkdtemp(prefix=".hmdem-write-check-", dir=ancestor))
-    except OSError as exc:
-        raise InputError(f"--out: cannot write under {str(ancestor)!r} ({exc.strerror})") from None
+        try:
+            os.mkdir(probe)
+        except OSError as exc:
+            raise InputError(f"--out: cannot write under {str(ancestor)!r} ({exc.strerror})") from None
+    finally:  # also after an interrupt between the two calls
+        with contextlib.suppress(OSError):
+            os.rmdir(probe)
+
+
+def exists(path: Path) -> bool:
+    """``path.exists()``, with a directory the user may not search as an --out error."""
+    try:
+        return Path(path).exists()
+    except PermissionError:
+        raise InputError(f"--out: {str(path)!r} cannot be reached (permission denied)") from None
 
 
 def read_packing(path: Path):

@@ -73,7 +73,7 @@ def plot_pressure(path, net: Network, pressure: np.ndarray, times, p_in, title: 
     # bottom of the scale: it ends at the 99.5th percentile of the domains, and the bar's arrow
     # says that some lie above
     top = float(np.percentile(pressure, 99.5)) / 1e3
-    above = float(np.max(pressure)) / 1e3 > top * (1 + 1e-9) + 1e-12
+    above = float(np.max(pressure)) / 1e3 > top + 1e-9 * abs(top) + 1e-12
     low = min(float(np.min(pressure)) / 1e3, top)
     pc = a0.tripcolor(tri, facecolors=p / 1e3, cmap="viridis", edgecolors="none", vmin=low,
                       vmax=top if top > low else None)

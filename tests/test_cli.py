@@ -80,6 +80,14 @@ def test_a_negative_number_in_any_notation_gets_the_options_own_message(value, c
                                                f"got {value!r}")
 
 
+def test_the_write_check_leaves_nothing(tmp_path):
+    # --out's write check makes and removes a probe directory where the run will go
+    from hmdem.cli import new_run_directory
+
+    assert new_run_directory(tmp_path / "a" / "run", "x") == tmp_path / "a" / "run"
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_existing_out_is_refused(tmp_path, capsys):
     (tmp_path / "run").mkdir()
     assert main(["linear", "--out", str(tmp_path / "run")]) == 2

@@ -496,6 +496,14 @@ def test_a_lost_worker_fails_the_run_and_keeps_the_other_channels(tmp_path, monk
     assert (out / "config.toml").exists() and (out / "timeseries.csv").exists()
 
 
+def test_a_lost_worker_is_named_by_its_signal():
+    from sph_bridge.lga.pool import lost_worker
+
+    assert lost_worker(2, -9) == "channel 2's worker was killed by SIGKILL (the out-of-memory killer?)"
+    assert lost_worker(0, -35) == "channel 0's worker was killed by signal 35"  # real-time: no name
+    assert lost_worker(1, 1) == "channel 1's worker ended (exit code 1) without sending its results"
+
+
 def test_sigterm_stops_the_workers_and_keeps_their_drives(tmp_path):
     # a batch system's SIGTERM reaches the main process (the workers ignore it) once the workers
     # have run thousands of steps ("k/" on the bar): every running channel sends back what it ran,

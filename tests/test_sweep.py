@@ -78,6 +78,7 @@ def test_axis_spec_gives_evenly_spaced_values_with_both_ends():
     (["--seeds", "0"], "--seeds"),
     (["--workers", "-1"], "--workers"),
     (["--scheduler", "notanaddress"], "--scheduler"),  # before the sweep directory is made
+    (["--scheduler", "foo://host:1"], "--scheduler"),
 ])
 def test_invalid_grid_specs_are_rejected_in_one_line(flags, named, tmp_path):
     out = tmp_path / "sweep"
@@ -98,6 +99,21 @@ def test_an_out_that_cannot_be_a_sweep_directory_is_one_line(out, tmp_path):
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("python -m hmdem.sweep: --out: ")
     assert [p.name for p in tmp_path.iterdir()] == ["a_file"] and (tmp_path / "a_file").read_text() == "x"
+
+
+def test_an_unreachable_scheduler_is_one_line_and_keeps_the_sweep_directory(tmp_path):
+    # README: a scheduler that cannot be reached in 30 s ends the command with one line, exit
+    # status 1, and the sweep directory (nothing run yet) is kept for a re-run
+    out = tmp_path / "sweep"
+    proc = subprocess.run([sys.executable, "-m", "hmdem.sweep", "lenormand", "--log-m", "-5:2:2", "--log-ca", "-8:2:2",
+                           "--scheduler", "tcp://127.0.0.1:1", "--out", str(out), "--quiet"],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 1
+    last = proc.stderr.strip().splitlines()[-1]
+    assert last.startswith("python -m hmdem.sweep: --scheduler: ") and "kept for a re-run" in last
+    assert "Traceback" not in proc.stderr
+    runs = json.loads((out / "manifest.json").read_text())["runs"]
+    assert len(runs) == 4 and all(r["status"] == "pending" for r in runs.values())
 
 
 def test_a_sweep_directory_cannot_be_resumed_with_another_grid(tmp_path):
@@ -259,21 +275,23 @@ def test_yade_batch_runs_the_shipped_table_and_collect_aggregates_it(packing, tm
 
 
 @pytest.mark.yade
-def test_yade_script_interrupted_exits_130_with_one_line_and_a_valid_directory(tmp_path):
-    # Ctrl-C to `yade -n -x yade_scripts/hele_shaw_linear.py` (the default point takes ~20 s):
-    # the run's own status 130 (yade-batch logs it), one line naming the run, and the run
-    # directory written with status "interrupted" (it used to end in a RuntimeError traceback)
+@pytest.mark.parametrize("signum, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_yade_script_interrupted_exits_128_plus_signal_with_one_line_and_a_valid_directory(signum, status, tmp_path):
+    # Ctrl-C or a batch system's SIGTERM to `yade -n -x yade_scripts/hele_shaw_linear.py` (the
+    # default point takes ~20 s): the run's own status (yade-batch logs it), one line naming the
+    # run, and the run directory written with status "interrupted" (it used to end in a
+    # RuntimeError traceback, and SIGTERM killed it with nothing written)
     proc = popen_interruptible(["yade", "-n", "-x", str(ROOT / "yade_scripts" / "hele_shaw_linear.py")], cwd=tmp_path)
     seen = ""
     while "Running script" not in seen and proc.poll() is None:
         seen += proc.stderr.read(1)
     time.sleep(3.0)
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(signum)
     err = proc.communicate(timeout=120)[1]
-    assert proc.returncode == 130, err[-2000:]
+    assert proc.returncode == status, err[-2000:]
     assert "Traceback" not in err
     (run,) = (tmp_path / "runs" / "lenormand-batch").iterdir()
-    assert f"run {run.name} ended with exit status 130; run directory" in err
+    assert f"run {run.name} ended with exit status {status}; run directory" in err
     assert json.loads((run / "summary.json").read_text())["status"] == "interrupted"
 
 

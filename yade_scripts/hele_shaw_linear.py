@@ -24,14 +24,16 @@ from yade import utils  # noqa: E402
 utils.readParamsFromTable(logM=2.0, logCa=1.0, seed=0, packing="", out="", noTableOk=True)
 from yade.params import table  # noqa: E402
 
+from hmdem.cli import sigterm_as_interrupt  # noqa: E402
 from hmdem.sweep.grid import SweepPoint  # noqa: E402
 from hmdem.sweep.runner import RunFailed, run_point  # noqa: E402
 
 point = SweepPoint(float(table.logM), float(table.logCa), int(table.seed))
 out = Path(table.out or f"runs/lenormand-batch/{point.run_id}")
 try:
-    summary = run_point(point, out, table.packing or None)
-except RunFailed as exc:  # one line and the run's own exit status (yade-batch logs 130 for Ctrl-C)
+    with sigterm_as_interrupt():  # a batch system's SIGTERM writes the run as Ctrl-C does
+        summary = run_point(point, out, table.packing or None)
+except RunFailed as exc:  # one line and the run's own exit status (yade-batch logs 130 / 143)
     print(f"{exc}; run directory {out}", file=sys.stderr)
     sys.exit(exc.exit_status)
 print(f"{point.run_id}: {summary['status']}, {summary['regime']}, D_f = {summary['fractal_dimension']}; run directory {out}")

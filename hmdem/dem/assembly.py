@@ -55,7 +55,7 @@ class DiscAssembly:
         self.k_s = ks_over_kn * k_n
         self.friction = friction
         ids = np.asarray(self.ids, int)
-        self._grain_of_body = np.full(ids.max() + 1, -1, int)  # body id -> grain index, -1: not a disc
+        self._grain_of_body = np.full(int(ids.max()) + 1 if len(ids) else 0, -1, int)  # body id -> grain, -1: none
         self._grain_of_body[ids] = np.arange(len(ids))
         self._masses = np.array([O.bodies[i].state.mass for i in self.ids])  # fixed at creation
 

@@ -25,6 +25,16 @@ UNBALANCED_FORCE = 1e-3
 WALLS = ((0, -1), (0, +1), (1, -1), (1, +1))  # (axis, side): left, right, bottom, top
 
 
+def open_bar(tqdm, **options):
+    """``tqdm(**options)``, which prints its first line at once; an interrupt landing inside that
+    print ends the line, so that the one-line message that follows starts on its own."""
+    try:
+        return tqdm(**options)
+    except KeyboardInterrupt:
+        sys.stderr.write("\n")
+        raise
+
+
 class CompactionBar:
     """A tqdm line for :func:`compact_sample`'s ``progress(cycles, wall_stresses)``: cycles run
     and the mean wall stress, refreshed at most every ``every_s`` seconds."""
@@ -36,10 +46,8 @@ class CompactionBar:
 
     def __call__(self, cycles: int, stresses: np.ndarray) -> None:
         if self.bar is None:  # opened at the first report, so that a closed bar can start again
-            # delay: it prints at its first refresh, once it is ours to close (an interrupt inside
-            # the constructor's own print would leave the line unended)
-            self.bar = self.tqdm(desc="compaction", unit=" cycles", file=sys.stderr, delay=1e-9,
-                                 bar_format="{desc}: {n} cycles [{elapsed}]{postfix}")
+            self.bar = open_bar(self.tqdm, desc="compaction", unit=" cycles", file=sys.stderr,
+                                bar_format="{desc}: {n} cycles [{elapsed}]{postfix}")
         now = time.perf_counter()
         if now - self.last >= self.every_s:
             self.last = now

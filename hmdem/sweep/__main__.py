@@ -78,9 +78,11 @@ def write_tables(root: Path, rows: list[dict] | None = None) -> list[dict]:
 def check_scheduler_address(address: str) -> None:
     """An :class:`InputError` unless ``address`` reads as a Dask scheduler's (e.g. tcp://host:8786)."""
     from distributed.comm.addressing import parse_address, parse_host_port
+    from distributed.comm.registry import get_backend
 
     try:
         protocol, location = parse_address(address)
+        get_backend(protocol)
         if protocol in ("tcp", "tls"):
             parse_host_port(location)
     except ValueError as exc:
@@ -114,6 +116,8 @@ def run_lenormand(args) -> int:
     try:
         counts = run_sweep(manifest, args.packing, args.workers, args.scheduler, progress=not args.quiet)
     except OSError as exc:  # the scheduler cannot be reached: the sweep directory stays, resumable
+        if args.scheduler is None:
+            raise
         print(f"{PROG}: --scheduler: {exc}; the sweep directory {str(out)!r} is kept for a re-run", file=sys.stderr)
         return 1
     except KeyboardInterrupt:

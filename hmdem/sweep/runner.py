@@ -42,7 +42,7 @@ def read_summary(run_dir: Path, finished_only: bool = True) -> dict | None:
 class RunFailed(RuntimeError):
     """A point's run that did not finish; ``exit_status`` is the run's own (130/143: interrupted)."""
 
-    def __init__(self, message: str, exit_status: int):
+    def __init__(self, message: str, exit_status: int = 1):  # the default: rebuilt by pickle from the message
         super().__init__(message)
         self.exit_status = exit_status
 

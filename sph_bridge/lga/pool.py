@@ -47,7 +47,6 @@ def _run_channel(conn, slot: int, steps_done, stop) -> None:
     for sig in STOP_SIGNALS:
         signal.signal(sig, signal.SIG_IGN)  # the main process decides when to stop
     parent = os.getppid()
-    channel, forcings, plan, density, seed = conn.recv()
 
     def report(n: int) -> None:
         steps_done[slot] += n
@@ -56,6 +55,7 @@ def _run_channel(conn, slot: int, steps_done, stop) -> None:
 
     series = []
     try:
+        channel, forcings, plan, density, seed = conn.recv()
         stopped = stop.value != 0
         if not stopped:
             try:
@@ -72,7 +72,10 @@ def _run_channel(conn, slot: int, steps_done, stop) -> None:
 def lost_worker(k: int, exitcode: int | None) -> str:
     """What became of job ``k``'s worker, for the run's status message."""
     if exitcode is not None and exitcode < 0:
-        name = signal.Signals(-exitcode).name
+        try:
+            name = signal.Signals(-exitcode).name
+        except ValueError:  # a real-time signal has no name
+            name = f"signal {-exitcode}"
         hint = " (the out-of-memory killer?)" if -exitcode == signal.SIGKILL else ""
         return f"channel {k}'s worker was killed by {name}{hint}"
     return f"channel {k}'s worker ended (exit code {exitcode}) without sending its results"
@@ -122,6 +125,10 @@ def run_in_workers(jobs, workers: int, progress, channel_done=lambda: None) -> t
                     conn.send(jobs[k])  # waits for the new interpreter to read it, signals handled
                 except OSError:  # it died before reading: the poll below finds it lost
                     pass
+                except BaseException:  # the job would not pickle: the worker waits for it in vain
+                    process.terminate()
+                    process.join()
+                    raise
                 running[k] = (process, conn)
             if stop.value:
                 waiting.clear()
