@@ -107,18 +107,20 @@ class _BiaxialProgress:
     def __init__(self, max_strain: float, every_s: float = 0.25):
         from tqdm import tqdm
 
-        from .dem.compaction import CompactionBar, open_bar
+        from .dem.compaction import CompactionBar
 
-        self.tqdm, self.open_bar, self.max_strain, self.every_s, self.last = tqdm, open_bar, max_strain, every_s, 0.0
+        self.tqdm, self.max_strain, self.every_s, self.last = tqdm, max_strain, every_s, 0.0
         self.compact = CompactionBar(every_s)
         self.loading = None
 
     def load(self, ea, s1, s3):
         if self.loading is None:
+            from .dem.compaction import open_bar
+
             self.compact.close()
-            self.loading = self.open_bar(self.tqdm, total=round(100 * self.max_strain, 3), unit="%", desc="loading",
-                                         file=sys.stderr,
-                                         bar_format="{desc}: {n:.2f}/{total:.2f} %|{bar}| [{elapsed}<{remaining}] {postfix}")
+            self.loading = open_bar(self.tqdm, total=round(100 * self.max_strain, 3), unit="%", desc="loading",
+                                    file=sys.stderr,
+                                    bar_format="{desc}: {n:.2f}/{total:.2f} %|{bar}| [{elapsed}<{remaining}] {postfix}")
         now = time.perf_counter()
         if now - self.last >= self.every_s or ea >= self.max_strain:
             self.last = now

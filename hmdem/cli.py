@@ -112,8 +112,9 @@ def _terminate(signum, frame):
 
 @contextlib.contextmanager
 def sigterm_as_interrupt():
-    """Inside: a SIGTERM stops the run as Ctrl-C does (and the exit status says 143), for code
-    that runs a command's work without :func:`dispatch` (the YADE scripts)."""
+    """Inside: a SIGTERM stops the run as Ctrl-C does (and the exit status says 143); the
+    previous handler is back after. :func:`dispatch` runs every command in it, the YADE sweep
+    script its point."""
     previous = signal.signal(signal.SIGTERM, _terminate)
     try:
         yield
@@ -133,19 +134,18 @@ def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -
     and exit status 2, and so is an ``--out`` that another process took during the run
     (:class:`~hmdem.rundir.RunDirectoryTaken`). The SIGTERM handler is the command's only:
     the previous one is back when it returns."""
-    previous = signal.signal(signal.SIGTERM, _terminate)
-    try:
-        if args.command in commands:
-            return commands[args.command](args)
-    except (InputError, RunDirectoryTaken) as exc:
-        print(f"{prog}: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:  # a run's time steps catch their own; this one came outside them
-        print(f"{prog}: interrupted; the results in progress were not written", file=sys.stderr)
-        return interrupted_status()
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-        _last_interrupt["signal"] = signal.SIGINT  # the next command starts from Ctrl-C's status
+    with sigterm_as_interrupt():
+        try:
+            if args.command in commands:
+                return commands[args.command](args)
+        except (InputError, RunDirectoryTaken) as exc:
+            print(f"{prog}: {exc}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt:  # a run's time steps catch their own; this one came outside them
+            print(f"{prog}: interrupted; the results in progress were not written", file=sys.stderr)
+            return interrupted_status()
+        finally:
+            _last_interrupt["signal"] = signal.SIGINT  # the next command starts from Ctrl-C's status
     parser.print_help()
     return 2
 

@@ -99,12 +99,12 @@ def run_lenormand(args) -> int:
     if args.scheduler is not None:
         check_scheduler_address(args.scheduler)
     out = args.out or Path("runs") / f"lenormand-{time.strftime('%Y%m%d-%H%M%S')}"
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out: {str(out)!r} is a file, not a sweep directory")
-    if out.exists() and not (out / "manifest.json").is_file() and any(out.iterdir()):
-        raise InputError(f"--out: {str(out)!r} exists and is not a sweep directory; choose a new one")
     if not out.exists():
         check_out_parent(out)
+    elif not out.is_dir():
+        raise InputError(f"--out: {str(out)!r} is a file, not a sweep directory")
+    elif not (out / "manifest.json").is_file() and any(out.iterdir()):
+        raise InputError(f"--out: {str(out)!r} exists and is not a sweep directory; choose a new one")
     spec = lenormand_spec(args.log_m, args.log_ca, args.seeds, args.packing)
     points = lenormand_points(args.log_m, args.log_ca, args.seeds)
     try:
