@@ -115,7 +115,7 @@ class _BiaxialProgress:
 
     def load(self, ea, s1, s3):
         if self.loading is None:
-            from .dem.compaction import open_bar
+            from .cli import open_bar
 
             self.compact.close()
             self.loading = open_bar(self.tqdm, total=round(100 * self.max_strain, 3), unit="%", desc="loading",

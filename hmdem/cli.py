@@ -100,6 +100,16 @@ def add_contact_arguments(parser: argparse.ArgumentParser, *, stiffness: bool = 
 _last_interrupt = {"signal": signal.SIGINT}  # the signal that stopped the command, for its exit status
 
 
+def open_bar(tqdm, **options):
+    """``tqdm(**options)``, which prints its first line at once; an interrupt landing inside that
+    print ends the line, so that the one-line message that follows starts on its own."""
+    try:
+        return tqdm(**options)
+    except KeyboardInterrupt:
+        sys.stderr.write("\n")
+        raise
+
+
 def record_interrupt(signum: int) -> None:
     """Remember the signal that is stopping the command (a handler calls this before it stops it)."""
     _last_interrupt["signal"] = signum

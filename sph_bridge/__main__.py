@@ -33,13 +33,14 @@ from pathlib import Path
 import numpy as np
 
 from hmdem.cli import (InputError, OneLineParser, dispatch, int_at_least, new_run_directory, non_negative_number,
-                       number_in, positive_number)
+                       number_in, open_bar, positive_number)
 from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_toml
+from hmdem.snapshots import write_collection
 
 from . import calibrations, cases, checkpoint, droplet
 from .calibrate import DROP_RADIUS_CELLS, MIN_RIDGE_CELLS
 from .interrupts import exit_status, interrupted
-from .output import particle_state, write_collection, write_particles
+from .output import particle_state, write_particles
 
 PROG = "python -m sph_bridge"
 MIN_LAYERS = 8  # the channel must hold a full kernel (h = 3.42 dx) from each wall
@@ -130,7 +131,8 @@ def build_parser() -> OneLineParser:
     return parser
 
 
-def progress_bar(args, total: float, unit: str = "s", extend: float = 0.0):
+def progress_bar(args, total: float, unit: str = "s", extend: float = 0.0, desc: str | None = None,
+                 leave: bool = True):
     """A tqdm bar over simulated time (None with --quiet) and the callback that advances it.
     ``extend`` > 0: a run that goes on past ``total`` (a drop not settled by its minimum
     duration) moves the bar's end on by this much at a time, so it never reads over 100 %."""
@@ -138,8 +140,8 @@ def progress_bar(args, total: float, unit: str = "s", extend: float = 0.0):
         return None, None
     from tqdm import tqdm
 
-    bar = tqdm(total=total, desc=args.command, unit=unit,
-               bar_format="{l_bar}{bar}| {n:.4f}/{total:.4f} " + unit + " [{elapsed}<{remaining}]")
+    bar = open_bar(tqdm, total=total, desc=desc or args.command, unit=unit, leave=leave,
+                   bar_format="{l_bar}{bar}| {n:.4f}/{total:.4f} " + unit + " [{elapsed}<{remaining}]")
 
     def advance(sim):
         if extend > 0 and sim.t > bar.total:
@@ -408,7 +410,11 @@ def droplet_summary(args, sim, shape, sigma, source, status) -> dict:
 
 def write_frames(tmp: Path, sim, frames) -> None:
     """particles_NNNN.vtu per frame (a state, or a checkpoint's file of it) and particles.pvd listing them; the
-    final state as particles.vtu."""
+    final state as particles.vtu. The series ends with the final state, so that a run stopped before its first
+    sample still has a frame to open in ParaView."""
+    final = particle_state(sim)
+    if not frames or frames[-1][0] < sim.t:
+        frames = [*frames, (sim.t, final)]
     names = []
     for k, (t, state) in enumerate(frames):
         names.append((t, f"particles_{k:04d}.vtu"))
@@ -417,7 +423,7 @@ def write_frames(tmp: Path, sim, frames) -> None:
         else:
             write_particles(tmp / names[-1][1], state)
     write_collection(tmp / "particles.pvd", names)
-    write_particles(tmp / "particles.vtu", particle_state(sim))
+    write_particles(tmp / "particles.vtu", final)
 
 
 def side_view(path: Path, sim, shape, summary: dict, ridge: bool) -> None:
@@ -464,8 +470,21 @@ def run_calibrate(args) -> int:
         lock, replay = open_checkpoint(args.checkpoint, out, checkpoint.TRIALS,  # noqa: F841 (held to the end)
                                        lambda: checkpoint.restore_trials(args.checkpoint, identity))
     start = time.perf_counter()
+    bar = None  # the running simulation's, one at a time: a slab, or each ridge of a contact-angle trial
+
+    def trial_bar(label, duration, extend):
+        nonlocal bar
+        close_bar()
+        bar, advance = progress_bar(args, duration, extend=extend, desc=f"trial {len(cal.trials) + 1}: {label}",
+                                    leave=False)
+        return advance
+
+    def close_bar():
+        if bar is not None:
+            bar.close()
 
     def report(trial):
+        close_bar()  # the trial's line replaces its bar
         if args.checkpoint is not None:
             checkpoint.save_trials(args.checkpoint, identity, cal.trials)
         if not args.quiet:
@@ -484,7 +503,8 @@ def run_calibrate(args) -> int:
         calibrate(args.dx, args.theta, args.surface_tension, report=report, cal=cal,
                   ridge_sizes=tuple(args.ridge_sizes), replay=replay,
                   on_replayed=lambda: print(f"calibrate: took the {len(replay)} trials saved in "
-                                            f"{str(args.checkpoint)!r}", file=sys.stderr))
+                                            f"{str(args.checkpoint)!r}", file=sys.stderr),
+                  progress=trial_bar)
     except ReplayMismatch as exc:
         raise InputError(f"--checkpoint: {str(args.checkpoint)!r}: {exc}") from None
     except (KeyboardInterrupt, SystemError) as exc:
@@ -493,6 +513,8 @@ def run_calibrate(args) -> int:
         status = "interrupted"
     except RuntimeError as exc:
         status, error = "not_converged", str(exc)
+    finally:
+        close_bar()
     summary = {"case": "calibrate", "status": status, "dx_m": args.dx, "c0_m_per_s": cal.c0,
                "rho0_fluid": cal.rho0_fluid, "s_ff_n": cal.s_ff, "s_sf_n": cal.s_sf,
                "surface_tension_n_per_m": cal.surface_tension, "target_surface_tension_n_per_m": args.surface_tension,
@@ -511,8 +533,14 @@ def run_calibrate(args) -> int:
         rows = [(t.stage, t.s_ff, t.s_sf, t.rho0_fluid, t.measured, t.bulk_density, t.steps,
                  " ".join(f"{a:.3f}" for a in t.ridge_angles_deg)) for t in cal.trials]
         write_rows(tmp / "timeseries.csv", columns, rows)
-    print(f"calibrate: {status}; s_ff = {cal.s_ff:.4g} N, s_sf = {cal.s_sf:.4g} N, rho0 = {cal.rho0_fluid:.1f} kg/m^3 "
-          f"(sigma {cal.surface_tension:.4f} N/m, theta {cal.contact_angle_deg:.2f}°)" + (f": {error}" if error else ""))
+    # a stage not finished has found nothing yet (summary.json has nulls there)
+    found = [f"after {len(cal.trials)} trial(s)"]
+    found.append("s_ff not found yet" if math.isnan(cal.s_ff) else
+                 f"s_ff = {cal.s_ff:.4g} N, rho0 = {cal.rho0_fluid:.1f} kg/m^3 (sigma {cal.surface_tension:.4f} N/m)")
+    if not math.isnan(cal.s_ff):
+        found.append("s_sf not found yet" if math.isnan(cal.s_sf) else
+                     f"s_sf = {cal.s_sf:.4g} N (theta {cal.contact_angle_deg:.2f}°)")
+    print(f"calibrate: {status} " + ", ".join(found) + (f": {error}" if error else ""))
     print(f"run directory: {out}")
     return exit_status(status)
 

@@ -77,12 +77,15 @@ class Calibration:
 
 def slab_tension(params: SphParameters, progress=None) -> tuple[float, float, int]:
     """sigma of a free slab relaxed for :data:`SLAB_PERIODS` acoustic periods, its bulk density and
-    the steps taken."""
+    the steps taken. ``progress(label, duration, extend)``, if given, is called once with the
+    simulated time the slab runs for and returns the per-step callback of ``Simulation.run``."""
     thickness = tension.SLAB_LAYERS * params.dx
     period = 2.0 * thickness / params.c0
     params = replace(params, gravity=(0.0, 0.0, 0.0), damping=2.0 * math.pi / period)
     sim = tension.slab(params)
-    sim.run(SLAB_PERIODS * period, record_every=math.inf, progress=progress)
+    duration = SLAB_PERIODS * period
+    advance = None if progress is None else progress("slab", duration, 0.0)
+    sim.run(duration, record_every=math.inf, progress=advance)
     return tension.surface_tension(sim), tension.bulk_density(sim), sim.record.steps
 
 
@@ -91,18 +94,25 @@ def zero_gravity_drop(params: SphParameters, surface_tension: float, progress=No
     """The relaxed shape (:class:`sph_bridge.droplet.DropShape`) of a ridge starting as a half
     cylinder of ``radius_cells`` dx radius at zero gravity, and the steps taken. A ridge's contact
     line is straight: its angle is Young's, while a round drop this small (~7 dx tall) stands
-    ~10° steeper at dx = 5e-4 m (decisions #39)."""
+    ~10° steeper at dx = 5e-4 m (decisions #39). ``progress``: as :func:`slab_tension`'s, told
+    the relaxation's minimum duration and how far each further settle check extends it."""
     volume = droplet.ridge_volume(radius_cells, params.dx)
     sim, t_min = droplet.prepare_drop(replace(params, gravity=(0.0, 0.0, 0.0)), volume, surface_tension, ridge=True)
-    shape, _ = droplet.relax(sim, t_min, ridge=True, progress=progress)
+    advance = None
+    if progress is not None:  # it runs its minimum samples, then a settle window at a time until settled
+        interval = t_min / droplet.SAMPLES
+        advance = progress(f"ridge of {radius_cells} dx", droplet.minimum_samples(params.anneal > 0) * interval,
+                           droplet.SETTLE_WINDOW * interval)
+    shape, _ = droplet.relax(sim, t_min, ridge=True, progress=advance)
     return shape, sim.record.steps
 
 
-def ridge_angles(params: SphParameters, surface_tension: float, radius_cells: tuple[int, ...]) -> tuple[tuple, int]:
+def ridge_angles(params: SphParameters, surface_tension: float, radius_cells: tuple[int, ...],
+                 progress=None) -> tuple[tuple, int]:
     """Cap angles [deg] of zero-gravity ridges of the given starting radii, and their steps."""
     angles, steps = [], 0
     for n in radius_cells:
-        shape, ridge_steps = zero_gravity_drop(params, surface_tension, radius_cells=n)
+        shape, ridge_steps = zero_gravity_drop(params, surface_tension, progress=progress, radius_cells=n)
         angles.append(shape.contact_angle_deg)
         steps += ridge_steps
     return tuple(angles), steps
@@ -129,7 +139,7 @@ class ReplayMismatch(ValueError):
 def calibrate(dx: float, theta_deg: float, target_tension: float = droplet.SURFACE_TENSION, c0: float | None = None,
               report=None, cal: Calibration | None = None,
               ridge_sizes: tuple[int, ...] = (DROP_RADIUS_CELLS,), replay: list[Trial] = (),
-              on_replayed=None) -> Calibration:
+              on_replayed=None, progress=None) -> Calibration:
     """s_ff (and the EOS reference density) for ``target_tension``, then s_sf for ``theta_deg``, at
     resolution ``dx`` (module docstring), the angle being the mean over ridges of ``ridge_sizes``
     dx starting radius. ``report(trial)`` is called after every trial run; ``cal``, if given, is
@@ -137,12 +147,13 @@ def calibrate(dx: float, theta_deg: float, target_tension: float = droplet.SURFA
     earlier run of the same calibration, ``calibrate --checkpoint``) are taken as measured
     instead of being run again: each step depends only on the trials before it, so the
     calibration goes on exactly where that run stopped; ``on_replayed()`` is called once the last
-    of them has been taken. Raises RuntimeError when a stage does
+    of them has been taken. ``progress(label, duration, extend)`` is :func:`slab_tension`'s, called
+    for every simulation a trial runs. Raises RuntimeError when a stage does
     not converge in :data:`MAX_TRIALS` trials, ReplayMismatch when a replayed trial's stage or
     strengths are not the ones asked for or the search ends before the replayed trials do."""
     cal = cal or Calibration(dx=dx, c0=sound_speed(dx) if c0 is None else c0)
     try:
-        search(cal, dx, theta_deg, target_tension, report, ridge_sizes, replay, on_replayed)
+        search(cal, dx, theta_deg, target_tension, report, ridge_sizes, replay, on_replayed, progress)
     except RuntimeError:
         unused_replay(cal, replay)
         raise
@@ -158,7 +169,7 @@ def unused_replay(cal: Calibration, replay: list[Trial]) -> None:
 
 
 def search(cal: Calibration, dx: float, theta_deg: float, target_tension: float, report,
-           ridge_sizes: tuple[int, ...], replay: list[Trial], on_replayed) -> None:
+           ridge_sizes: tuple[int, ...], replay: list[Trial], on_replayed, progress=None) -> None:
     """:func:`calibrate`'s two stages (module docstring), filling ``cal``."""
 
     def trial(stage, s_ff, s_sf, rho0, measure):
@@ -187,7 +198,7 @@ def search(cal: Calibration, dx: float, theta_deg: float, target_tension: float,
     s, history = TENSION_FIRST_GUESS * dx, []
     for _ in range(MAX_TRIALS):
         rho0 = cal.rho0_fluid
-        slab = trial("tension", s, 0.0, rho0, lambda: slab_tension(cal.parameters(s_ff=s, s_sf=0.0)))
+        slab = trial("tension", s, 0.0, rho0, lambda: slab_tension(cal.parameters(s_ff=s, s_sf=0.0), progress))
         sigma, bulk = slab.measured, slab.bulk_density
         if not (sigma > 0.0 and math.isfinite(bulk)):
             raise RuntimeError(f"the slab at s_ff = {s:.4g} N measured sigma = {sigma:.4g} N/m, bulk {bulk:.4g} kg/m^3")
@@ -212,7 +223,7 @@ def search(cal: Calibration, dx: float, theta_deg: float, target_tension: float,
     s_sf, history = droplet.pairwise_young_s_sf(cal.s_ff, theta_deg), []
 
     def ridges():  # at the current s_sf
-        angles, steps = ridge_angles(cal.parameters(s_sf=s_sf), cal.surface_tension, ridge_sizes)
+        angles, steps = ridge_angles(cal.parameters(s_sf=s_sf), cal.surface_tension, ridge_sizes, progress)
         return float(np.mean(angles)), math.nan, steps, angles
 
     for _ in range(MAX_TRIALS):

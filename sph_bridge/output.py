@@ -1,4 +1,4 @@
-"""ParaView output of particle states (meshio .vtu point clouds, a .pvd collection for series)."""
+"""ParaView output of particle states (meshio .vtu point clouds; hmdem.snapshots writes the .pvd of a series)."""
 
 from __future__ import annotations
 
@@ -20,10 +20,3 @@ def write_particles(path: Path, state: tuple) -> None:
     cells = [("vertex", np.arange(len(points)).reshape(-1, 1))]
     meshio.write(path, meshio.Mesh(points, cells, point_data={
         "velocity": vel, "pressure": pressure, "density": rho, "fluid": fluid.astype(np.int8)}))
-
-
-def write_collection(path: Path, frames: list[tuple[float, str]]) -> None:
-    """A ParaView .pvd file listing (time, relative .vtu path) frames: the series opens as one."""
-    rows = "\n".join(f'    <DataSet timestep="{t:.9g}" part="0" file="{name}"/>' for t, name in frames)
-    path.write_text('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n'
-                    f"{rows}\n  </Collection>\n</VTKFile>\n")

@@ -205,13 +205,25 @@ def calibrated(dx):
 @pytest.mark.parametrize("dx", [CI_DX, pytest.param(2e-4, marks=pytest.mark.slow)])
 def test_calibrated_slab_has_water_surface_tension_and_density(dx):
     # the stored calibration reproduces its targets: sigma = 0.072 N/m within the calibration's
-    # 1 % and the bulk at 1000 kg/m^3 within 0.5 % (decisions #36)
-    from sph_bridge.calibrate import DENSITY_TOLERANCE, SIGMA_TOLERANCE, slab_tension
+    # 1 % and the bulk at 1000 kg/m^3 within 0.5 % (decisions #36); `calibrate`'s bar is told the
+    # slab's duration (SLAB_PERIODS acoustic periods of its thickness) and follows every step to it
+    from sph_bridge.calibrate import DENSITY_TOLERANCE, SIGMA_TOLERANCE, SLAB_PERIODS, slab_tension
+    from sph_bridge.tension import SLAB_LAYERS
 
     entry = calibrated(dx)
-    sigma, bulk, _ = slab_tension(SphParameters(dx=dx, c0=entry.c0, rho0_fluid=entry.rho0_fluid, s_ff=entry.s_ff))
+    bars, times = [], []
+
+    def progress(label, duration, extend):
+        bars.append((label, duration, extend))
+        return lambda sim: times.append(sim.t)
+
+    sigma, bulk, steps = slab_tension(SphParameters(dx=dx, c0=entry.c0, rho0_fluid=entry.rho0_fluid, s_ff=entry.s_ff),
+                                      progress)
     assert sigma == pytest.approx(0.072, rel=SIGMA_TOLERANCE)
     assert bulk == pytest.approx(1000.0, rel=DENSITY_TOLERANCE)
+    duration = SLAB_PERIODS * 2 * SLAB_LAYERS * dx / entry.c0
+    assert bars == [("slab", pytest.approx(duration, rel=1e-12), 0.0)]
+    assert len(times) == steps and times[-1] == pytest.approx(duration, rel=1e-9)
 
 
 def run_droplet(tmp_path, name, *args):
@@ -379,6 +391,37 @@ def test_a_killed_droplet_goes_on_from_its_checkpoint_to_the_straight_runs_resul
         assert f"pid {os.getpid()}" in capsys.readouterr().err and not (tmp_path / "other").exists()
     finally:
         held.close()
+
+
+def test_a_droplet_stopped_before_its_first_sample_still_has_a_frame(monkeypatch, tmp_path):
+    # Ctrl-C leaves a valid partial run directory: the ParaView series ends with the state the
+    # run stopped in, even when no sample was taken (it used to be an empty particles.pvd)
+    import signal
+    import xml.etree.ElementTree as ET
+
+    import meshio
+
+    from sph_bridge import __main__ as cli
+
+    monkeypatch.setattr(signal, "signal", lambda *args: None)  # the CLI's SIGTERM handler stays out of pytest
+    measure, calls = droplet.measure, []
+
+    def stopped_at_first_sample(sim, ridge):
+        calls.append(sim.t)
+        if len(calls) == 1:
+            raise KeyboardInterrupt
+        return measure(sim, ridge)
+
+    monkeypatch.setattr(droplet, "measure", stopped_at_first_sample)
+    out = tmp_path / "stopped"
+    assert cli.main(["droplet", "--dx", "1e-3", "--volume", "6e-7", "--gravity", "0", "--s-ff", "4e-6",
+                     "--s-sf", "3e-6", "--c0", "3", "--quiet", "--out", str(out)]) == 130
+    summary = json.loads((out / "summary.json").read_text())
+    datasets = ET.parse(out / "particles.pvd").getroot().findall("./Collection/DataSet")
+    assert summary["status"] == "interrupted" and len(datasets) == 1
+    assert float(datasets[0].get("timestep")) == pytest.approx(summary["simulated_time_s"])
+    frame = meshio.read(out / datasets[0].get("file"))
+    assert np.array_equal(frame.points, meshio.read(out / "particles.vtu").points)
 
 
 def test_droplet_bad_input_is_one_line(tmp_path):

@@ -15,6 +15,7 @@ import time
 
 import numpy as np
 
+from ..cli import open_bar
 from ..network.packing import CONTACT_STIFFNESS, GRAIN_DENSITY, DiscPacking
 from ..yade_env import import_yade
 from .assembly import run_cycles
@@ -23,16 +24,6 @@ from .packing import random_seed_positions
 
 UNBALANCED_FORCE = 1e-3
 WALLS = ((0, -1), (0, +1), (1, -1), (1, +1))  # (axis, side): left, right, bottom, top
-
-
-def open_bar(tqdm, **options):
-    """``tqdm(**options)``, which prints its first line at once; an interrupt landing inside that
-    print ends the line, so that the one-line message that follows starts on its own."""
-    try:
-        return tqdm(**options)
-    except KeyboardInterrupt:
-        sys.stderr.write("\n")
-        raise
 
 
 class CompactionBar:
