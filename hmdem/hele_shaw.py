@@ -214,12 +214,27 @@ def run_linear(args) -> int:
     state, rec = model.run(progress=each_step(bar, snapshots))
     if bar is not None:
         bar.close(rec.status == "breakthrough")
+    darcy = darcy_transient(sc, rec, state) if case.name == "darcy" and rec.rows else None
     summary = write_run(out, sc, model, state, rec, seed=args.seed, argv=recorded_argv(args),
-                        snapshots=None if snapshots is None else snapshots.taken)
+                        snapshots=None if snapshots is None else snapshots.taken,
+                        summary_extra=None if darcy is None else darcy.summary(),
+                        extra_files=None if darcy is None else darcy.write_figure)
     print(f"{case.name}: {rec.status} at t = {state.t:.4g} s after {rec.steps} steps; regime: {summary['regime']}, "
           f"D_f = {summary['fractal_dimension']:.3f}, peak injection pressure {summary['peak_injection_pressure_pa']:.4g} Pa")
+    if darcy is not None:
+        print(f"{case.name}: k = {darcy.permeability:.4g} m^2 (Eq. 21 at the last step); against App. D.1's Eqs. 37-38 "
+              f"the largest errors are {darcy.inflow_pressure_error:.1%} (p_in), {darcy.outflow_rate_error:.1%} (q_out), "
+              f"{darcy.profile_error:.1%} (final profile): {'within' if darcy.within_u16 else 'outside'} U16's 5 %")
     print(f"run directory: {out}")
     return finish(rec, summary)
+
+
+def darcy_transient(sc, rec, state):
+    """The darcy case's run against seed 004 App. D.1 (:mod:`hmdem.flow.darcy_transient`)."""
+    from .flow.darcy_transient import read_darcy_test
+
+    times, injection_pressure, outflow = rec.series("t", "p_in_mean", "q_out")
+    return read_darcy_test(sc.net, sc.setup, sc.sigma, times, injection_pressure, outflow, state.pressure)
 
 
 def each_step(*callbacks):

@@ -139,3 +139,35 @@ def plot_fracture_chronology(path, net: Network, saturation: np.ndarray, radii, 
         fig.colorbar(ScalarMappable(norm=norm, cmap="viridis"), ax=ax, label=f"opened at t [{unit}]")
         ax.legend(loc="upper right", fontsize=7)
     _finish_sample_plane(fig, ax, path, title)
+
+
+def plot_darcy_transient(path, test) -> None:
+    """A darcy run against seed 004 App. D.1 (a :class:`hmdem.flow.darcy_transient.DarcyTest`):
+    injection pressure and outflow against t_D with Eqs. 37-38, and the final profile."""
+    from .flow.darcy_transient import U16_TOLERANCE, series
+
+    fig, (a0, a1) = plt.subplots(1, 2, figsize=(11, 4.2))
+    # gauge pressures are positive, p_D = -p k H / (eta L Q) is not: the curves compare p / dP with -p_D
+    t_d = np.geomspace(float(test.t_d[0]), float(test.t_d[-1]), 400)
+    a0.semilogx(test.t_d, test.inflow_pressure, lw=1.5, color="C0", label="p_in / ΔP, run")
+    a0.semilogx(t_d, -series(0.0, t_d)[0], "k--", lw=1, label="−p_D(0, t_D), Eq. 37")
+    a0.semilogx(test.t_d, test.outflow_rate, lw=1.5, color="C1", label="q_out / Q, run")
+    a0.semilogx(t_d, series(1.0, t_d)[1], "k:", lw=1, label="q_D(1, t_D), Eq. 38")
+    a0.set_xlabel("t_D")
+    a0.set_ylabel("dimensionless")
+    a0.set_title(f"largest errors: p_in {test.inflow_pressure_error:.1%}, q_out {test.outflow_rate_error:.1%} "
+                 f"(U16: < {U16_TOLERANCE:.0%})", fontsize=9)
+    a0.legend(fontsize=8, loc="upper left")
+    a0.grid(alpha=0.3)
+    x_d = np.linspace(0.0, 1.0, 200)
+    a1.plot(test.profile_x_d, test.profile, "o", color="C0", label="p / ΔP, run (mean per bin)")
+    a1.plot(x_d, -series(x_d, test.t_d[-1])[0], "k--", lw=1, label=f"−p_D(x_D, {test.t_d[-1]:.3g}), Eq. 37")
+    a1.set_xlabel("x_D")
+    a1.set_ylabel("dimensionless pressure")
+    a1.set_title(f"final profile: largest error {test.profile_error:.1%}; k = {test.permeability:.4g} m², "
+                 f"c_v = {test.storage_fraction:.3f}", fontsize=9)
+    a1.legend(fontsize=8)
+    a1.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)

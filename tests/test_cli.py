@@ -126,6 +126,22 @@ def test_run_directory_contract(tmp_path):
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no partial directory left
 
 
+def test_darcy_run_reports_itself_against_app_d1(tmp_path, capsys):
+    # `linear --case darcy` reads its own run against Eqs. 37-38 (U16, tested on the same reading
+    # in test_solver.py): k from the steady drop, the largest errors, darcy.png
+    out = tmp_path / "darcy"
+    assert main(["linear", "--case", "darcy", "--out", str(out), "--quiet"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert (out / "darcy.png").is_file() and summary["darcy_within_u16"]
+    errors = [summary[f"darcy_{name}_error"] for name in ("inflow_pressure", "outflow_rate", "profile")]
+    assert 0 < max(errors) < 0.05 and summary["darcy_final_t_d"] > 3  # steady at the end: k is read there
+    # Eq. 21 on the steady drop (H = the sample's 65 mm side, L = the inlet-outlet distance < H)
+    k = summary["darcy_permeability_m2"]
+    drop, rate, viscosity = summary["final_injection_pressure_pa"], summary["rate_m3_per_s_per_m"], 1.0
+    assert viscosity * 0.9 * 0.065 * rate / (0.065 * drop) < k < viscosity * rate / drop
+    assert "within U16's 5 %" in capsys.readouterr().out
+
+
 def test_an_out_taken_during_the_run_keeps_the_results_beside_it(tmp_path, capsys):
     # another process makes --out while a run runs: the finished run is neither lost nor merged
     # into it, but kept as <out>.unsaved-XXXX, and the error names that directory

@@ -6,6 +6,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from hmdem.cases import AIR_OIL, CASES
+from hmdem.flow.darcy_transient import binned_profile, read_darcy_test, series
 from hmdem.flow.fluids import conductance
 from hmdem.flow.ordering import nested_dissection
 from hmdem.flow.pressure import PressureSystem
@@ -142,22 +143,6 @@ def test_u10_overfill_refinement_fills_exactly_one_domain():
     assert refined >= 10
 
 
-def darcy_series(x_d, t_d, terms=200):
-    """App. D.1, Eqs. 37-38: p_D(x_D, t_D) and q_D(x_D, t_D) (with the digest's typo fix)."""
-    k = np.arange(terms)[:, None]
-    m = 2 * k + 1
-    decay = np.exp(-(m**2) * np.pi**2 * t_d / 4)
-    p_d = -1 + x_d + 8 / np.pi**2 * np.sum(np.cos(m * np.pi * x_d / 2) / m**2 * decay, axis=0)
-    q_d = 1 - 4 / np.pi * np.sum(np.sin(m * np.pi * x_d / 2) / m * decay, axis=0)
-    return p_d, q_d
-
-
-def binned_profile(x_d, p, bins=10):
-    edges = np.linspace(0, 1, bins + 1)
-    idx = np.clip(np.digitize(x_d, edges) - 1, 0, bins - 1)
-    return 0.5 * (edges[1:] + edges[:-1]), np.bincount(idx, p, bins) / np.bincount(idx, minlength=bins)
-
-
 def test_u16_darcy_transient_against_series():
     # seed004 U16 / App. D.1: q_in, q_out and p(x, t) against Eqs. 37-38 within 5 % of steady values.
     # k is taken from the simulated steady state (Eq. 21) and c_v = sum V / (L H), as the paper does;
@@ -185,17 +170,24 @@ def test_u16_darcy_transient_against_series():
     def t_d(time):
         return k * fl.bulk_modulus_def * time / (c_v * fl.viscosity_def * length**2)
 
-    p_d0, _ = darcy_series(np.zeros(1), t_d(t))
-    _, q_d1 = darcy_series(np.ones(1), t_d(t))
+    p_d0, _ = series(np.zeros(1), t_d(t))
+    _, q_d1 = series(np.ones(1), t_d(t))
     np.testing.assert_allclose(q_in, q, rtol=1e-12)
     assert np.max(np.abs(p_in / dp_steady + p_d0)) < 0.05
     assert np.max(np.abs(q_out / q - q_d1)) < 0.05
+    # what `linear --case darcy` reports (summary.json, darcy.png) is this reading
+    run = read_darcy_test(net, sc.setup, sc.sigma, t, p_in, q_out, state.pressure)
+    assert sc.sigma == height and run.permeability == pytest.approx(k, rel=1e-12)
+    assert run.storage_fraction == pytest.approx(c_v, rel=1e-12)
+    assert run.inflow_pressure_error == pytest.approx(np.max(np.abs(p_in / dp_steady + p_d0)), rel=1e-9)
+    assert run.outflow_rate_error == pytest.approx(np.max(np.abs(q_out / q - q_d1)), rel=1e-9)
     assert 0.1 < t_d(t_mid) < 1.0  # the mid-time profile is a real transient
     x_d = (net.domain_centroid[free, 0] - x_in) / length
     for time, p in ((t_mid, p_mid), (t[-1], state.pressure)):
         xc, p_bin = binned_profile(x_d, p[free] / dp_steady)
-        p_d, _ = darcy_series(xc, t_d(time))
+        p_d, _ = series(xc, t_d(time))
         assert np.max(np.abs(p_bin + p_d)) < 0.05
+    assert run.profile_error == pytest.approx(np.max(np.abs(p_bin + p_d)), rel=1e-9) and run.within_u16
 
 
 def test_amg_branch_agrees_with_direct(monkeypatch):
@@ -335,3 +327,20 @@ def test_an_island_level_from_a_tiny_nonzero_pivot_is_caught():
     x = sparse.SpdSolver().solve(sp.csr_matrix(laplacian + np.diag(storage)), b, residual=residual,
                                  b_size=np.abs(b), storage=storage, floating=floating)
     assert np.allclose(x[10:], 1e-9 / 1e-16, rtol=1e-12)
+
+
+def test_darcy_series_meets_its_initial_and_boundary_conditions():
+    # Eqs. 37-38 (App. D.1, the digest's boundary-condition fix): p_D = 0 everywhere at t_D = 0
+    # (the cosine series of 1 - x_D), p_D(1) = 0 and q_D(0) = 1 at all times, q_D(1, 0) = 0
+    # (Leibniz: 1 - 1/3 + 1/5 ... = pi/4) and the steady state p_D = x_D - 1, q_D = 1. At t_D = 0
+    # the 200 terms leave the series' tails: 8/pi^2 sum_{odd m > 400} 1/m^2 ~ 8/pi^2/800 = 1.01e-3
+    # for p_D, and an alternating tail under its first term 4/(401 pi) = 3.2e-3 for q_D
+    x_d = np.linspace(0.0, 1.0, 11)
+    p0, q0 = series(x_d, 0.0)
+    assert np.max(np.abs(p0)) < 1.1e-3 and abs(q0[-1]) < 3.2e-3 and q0[0] == 1.0
+    for t_d in (0.05, 0.5, 2.0):
+        p, q = series(x_d, t_d)
+        assert abs(p[-1]) < 1e-12 and q[0] == 1.0
+    p, q = series(x_d, 50.0)
+    np.testing.assert_allclose(p, x_d - 1, atol=1e-12)
+    np.testing.assert_allclose(q, 1.0, atol=1e-12)
