@@ -61,6 +61,7 @@ def plot_phase_diagram(path: Path, rows: list[dict], crossover: float | None = N
     from ..plots import plt  # Agg backend, Debian's Axes3D warning silenced
 
     points = point_summary(rows)
+    stars = [(math.log10(m), math.log10(c), regime) for m, c, regime in LENORMAND_EXPERIMENTS]
     fig, ax = plt.subplots(figsize=(8.5, 6.5))
     if points:
         ms = np.array(sorted({k[0] for k in points}))
@@ -76,12 +77,17 @@ def plot_phase_diagram(path: Path, rows: list[dict], crossover: float | None = N
                 label += f"\n{failed}/{n} failed"
             if compression > WEAK_COMPRESSION:
                 label += f"\np/K {compression:.2f} !"
-            ax.text(m, c, label, ha="center", va="center", fontsize=8)
+            x0, x1, y0, y1 = m_edges[i], m_edges[i + 1], c_edges[j], c_edges[j + 1]
+            # a star in the cell: the label moves to the half of the cell the star is not in
+            star_y = [y for x, y, _ in stars if x0 <= x < x1 and y0 <= y < y1]
+            y = c if not star_y else c - 0.25 * (y1 - y0) if star_y[0] > c else c + 0.25 * (y1 - y0)
+            ax.text(m, y, label, ha="center", va="center", fontsize=8, zorder=3,  # readable over the lines
+                    bbox={"boxstyle": "round,pad=0.15", "facecolor": "white", "alpha": 0.55, "edgecolor": "none"})
         x_lim, y_lim = (m_edges[0], m_edges[-1]), (c_edges[0], c_edges[-1])
     else:
         x_lim, y_lim = (-5.0, 2.0), (-8.0, 2.0)
-    for m, c, regime in LENORMAND_EXPERIMENTS:
-        ax.plot(math.log10(m), math.log10(c), marker="*", ms=14, color=REGIME_COLOURS[regime], mec="black")
+    for m, c, regime in stars:
+        ax.plot(m, c, marker="*", ms=14, color=REGIME_COLOURS[regime], mec="black", zorder=4)
     if crossover is not None:
         x = np.linspace(min(x_lim[0], -6), max(x_lim[1], 3), 200)
         y = math.log10(crossover) + np.minimum(x, 0.0)
@@ -96,20 +102,22 @@ def plot_phase_diagram(path: Path, rows: list[dict], crossover: float | None = N
     if ratios:
         shift = math.log10(float(np.median(ratios)))
         right = ax.secondary_yaxis("right", functions=(lambda y: y + shift, lambda y: y - shift))
-        right.set_ylabel(f"log$_{{10}}$ Ca (plain: Ca = Ca* ā / L = Ca* / {1 / 10 ** shift:.1f})")
+        right.set_ylabel(f"log$_{{10}}$ Ca = Ca* ā / L  (this sample: Ca* / {1 / 10 ** shift:.1f})")
     handles = [Patch(color=c, label=name) for name, c in REGIME_COLOURS.items()]
     handles.append(Patch(facecolor=OTHER_COLOUR, hatch="//", label="failed / other"))
     handles.append(plt.Line2D([], [], ls="", label=f"'p/K 0.64 !': peak pressure / bulk modulus beyond "
                               f"{WEAK_COMPRESSION}, the constant-K range"))
     handles.append(plt.Line2D([], [], marker="*", ls="", ms=12, color="grey", mec="black",
-                              label="Lenormand et al. (1988) experiments (seed 004 §4.1)"))
+                              label=f"Lenormand et al. (1988) experiments at Ca* = {LENORMAND_L_OVER_A:.1f} Ca "
+                                    "(their L / ā, seed 004 §4.1)"))
     if crossover is not None:
         handles.append(plt.Line2D([], [], color="black", ls="--",
                                   label=f"viscous = 10 x capillary spread (Darcy; Ca*$_c$ = {crossover:.3g} at M ≥ 1)"))
         handles.append(plt.Line2D([], [], color="black", ls=":", label="M = 1 (Saffman-Taylor)"))
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=8)
-    ax.set_title(f"Lenormand phase diagram: {len(rows)} runs, regime by majority over seeds\n"
-                 f"Lenormand's micromodel: Ca = Ca* / {LENORMAND_L_OVER_A:.1f}", fontsize=10)
+    # Ca* (Eq. 24) scales Ca by each sample's L / ā: the right axis converts with this sample's,
+    # the stars sit where Lenormand's micromodel (150 mm / 0.35 mm) puts its experiments
+    ax.set_title(f"Lenormand phase diagram: {len(rows)} runs, regime by majority over seeds", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=130)
     plt.close(fig)
