@@ -311,9 +311,8 @@ def run_droplet(args) -> int:
             print(f"droplet: resuming {str(args.checkpoint)!r} at t = {sim.t:.5g} s after {len(shapes)} shape "
                   f"samples ({sim.record.steps} steps)", file=sys.stderr)
     # the bar runs to the shortest relaxation; one that has not settled by then moves it on to its next settle check
-    interval = t_min / droplet.SAMPLES
-    bar, advance = progress_bar(args, droplet.minimum_samples(params.anneal > 0) * interval,
-                                extend=droplet.SETTLE_WINDOW * interval)
+    shortest, extend = droplet.relaxation_span(t_min, params.anneal > 0)
+    bar, advance = progress_bar(args, shortest, extend=extend)
     status, settled = "finished", False
 
     def on_sample(s, k):
@@ -533,7 +532,7 @@ def run_calibrate(args) -> int:
         rows = [(t.stage, t.s_ff, t.s_sf, t.rho0_fluid, t.measured, t.bulk_density, t.steps,
                  " ".join(f"{a:.3f}" for a in t.ridge_angles_deg)) for t in cal.trials]
         write_rows(tmp / "timeseries.csv", columns, rows)
-    # a stage not finished has found nothing yet (summary.json has nulls there)
+    # a stage not finished has found nothing yet (its values are null in summary.json)
     found = [f"after {len(cal.trials)} trial(s)"]
     found.append("s_ff not found yet" if math.isnan(cal.s_ff) else
                  f"s_ff = {cal.s_ff:.4g} N, rho0 = {cal.rho0_fluid:.1f} kg/m^3 (sigma {cal.surface_tension:.4f} N/m)")

@@ -99,10 +99,8 @@ def zero_gravity_drop(params: SphParameters, surface_tension: float, progress=No
     volume = droplet.ridge_volume(radius_cells, params.dx)
     sim, t_min = droplet.prepare_drop(replace(params, gravity=(0.0, 0.0, 0.0)), volume, surface_tension, ridge=True)
     advance = None
-    if progress is not None:  # it runs its minimum samples, then a settle window at a time until settled
-        interval = t_min / droplet.SAMPLES
-        advance = progress(f"ridge of {radius_cells} dx", droplet.minimum_samples(params.anneal > 0) * interval,
-                           droplet.SETTLE_WINDOW * interval)
+    if progress is not None:
+        advance = progress(f"ridge of {radius_cells} dx", *droplet.relaxation_span(t_min, params.anneal > 0))
     shape, _ = droplet.relax(sim, t_min, ridge=True, progress=advance)
     return shape, sim.record.steps
 

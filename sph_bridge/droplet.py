@@ -278,6 +278,13 @@ def relax(sim: Simulation, t_min: float, ridge: bool = False, progress=None, on_
     return average(shapes[-SETTLE_WINDOW:]), has_settled(shapes, first_check)
 
 
+def relaxation_span(t_min: float, annealed: bool) -> tuple[float, float]:
+    """What a progress bar over :func:`relax` needs: its shortest duration (the minimum samples)
+    and how far each further settle check extends a relaxation that has not settled by then."""
+    interval = t_min / SAMPLES
+    return minimum_samples(annealed) * interval, SETTLE_WINDOW * interval
+
+
 def minimum_samples(annealed: bool) -> int:
     """Samples (of t_min / :data:`SAMPLES`) before a relaxation may stop: t_min, or for an annealed
     one two windows after its kicks end (both quarters compared lie after the kicks: a shape
