@@ -331,8 +331,9 @@ def run_droplet(args) -> int:
             raise
         status = "interrupted"
         shape = droplet.measure(sim, args.ridge)
-    if bar is not None:
-        bar.close()
+    finally:  # an error's traceback then starts on a line of its own
+        if bar is not None:
+            bar.close()
     summary = droplet_summary(args, sim, shape, sigma, source, status)
     summary["settled"] = settled
     summary["plate_sized_for_deg"] = plate_theta if args.gravity > 0 else math.nan
