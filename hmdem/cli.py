@@ -161,9 +161,10 @@ def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -
 
 
 def new_run_directory(out: Path | None, name: str) -> Path:
-    """``--out`` or ``runs/<name>-<time>``; refuses an existing directory (runs never overwrite)
-    and a path through a file, before any work is done."""
-    out = out or Path("runs") / f"{name}-{time.strftime('%Y%m%d-%H%M%S')}"
+    """``--out`` or ``runs/<name>-<time>-<pid>``; refuses an existing directory (runs never
+    overwrite) and a path through a file, before any work is done. The process id keeps two
+    runs started in the same second (a shell loop, a batch array) from taking the same name."""
+    out = out or Path("runs") / f"{name}-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}"
     if exists(out):
         raise InputError(f"--out: {str(out)!r} already exists; choose a new run directory")
     check_out_parent(out)

@@ -147,6 +147,9 @@ def make_case(args):
     changes = {k: getattr(args, k) for k in ("dt", "mean_aperture", "t_max") if getattr(args, k) is not None}
     fluids = case.fluids
     if args.viscosity_ratio is not None:
+        if not case.two_phase:  # one fluid fills the pores: its pipes would ignore eta_inv
+            raise InputError(f"--viscosity-ratio: the {case.name} case is single-phase (one fluid, M = 1); "
+                             "leave it out")
         fluids = replace(case.fluids, viscosity_inv=args.viscosity_ratio * case.fluids.viscosity_def)
         changes["fluids"] = fluids
     ca_star = case.ca_star if args.ca_star is None else args.ca_star

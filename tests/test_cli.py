@@ -5,6 +5,7 @@ import os
 import subprocess
 import sys
 import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -25,6 +26,8 @@ CMD = [sys.executable, "-m", "hmdem.hele_shaw"]
     (["linear", "--dt", "0"], "--dt"),
     (["linear", "--case", "nope"], "--case"),
     (["linear", "--seed", "-3"], "--seed"),
+    # single phase: an invading viscosity would be recorded in config.toml and used nowhere
+    (["linear", "--case", "darcy", "--viscosity-ratio", "5"], "--viscosity-ratio"),
     (["radial", "--case", "A2"], "--case"),
     (["radial", "--viscosity-ratio", "-5"], "--viscosity-ratio"),
     (["radial", "--ca-star", "nan"], "--ca-star"),
@@ -86,6 +89,19 @@ def test_the_write_check_leaves_nothing(tmp_path):
 
     assert new_run_directory(tmp_path / "a" / "run", "x") == tmp_path / "a" / "run"
     assert list(tmp_path.iterdir()) == []
+
+
+def test_default_run_directories_of_concurrent_runs_differ(tmp_path, monkeypatch):
+    # two runs started in the same second without --out must not race for one name
+    from hmdem import cli
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(cli.time, "strftime", lambda fmt: "20261129-021659")
+    names = []
+    for pid in (101, 102):
+        monkeypatch.setattr(cli.os, "getpid", lambda pid=pid: pid)
+        names.append(cli.new_run_directory(None, "darcy"))
+    assert names == [Path("runs/darcy-20261129-021659-101"), Path("runs/darcy-20261129-021659-102")]
 
 
 def test_existing_out_is_refused(tmp_path, capsys):
