@@ -5,7 +5,7 @@
 `linear --case darcy` reads k = 1.37-1.43e-9 m2 over seeds 0-3 on the shipped packing; seed 004
 §4.1 gives 1.066e-9 for its network of 1,874 domains and 3,061 pipes. This prints the steady
 network permeability (one sparse solve, the `darcy` case's network and boundaries, Eq. 21 with
-H = 65 mm) for:
+H the packing's height, as the darcy run reads it) for:
 
 - the near-contact gap that decides which grain pairs are pipes (#2; 0.08 is the default), to see
   whether the paper's pipe count explains the difference;
@@ -30,13 +30,13 @@ from hmdem.scenario import build_network  # noqa: E402
 
 PAPER_PERMEABILITY = 1.066e-9  # seed 004 §4.1, Eq. 21 on the paper's network
 PAPER_PIPES = 3061
-CELL_HEIGHT = 65e-3  # H of Eq. 21, as the darcy run reads it (#75)
 GAPS = (0.0, 0.04, 0.08, 0.15, 0.25, 0.4)
 
 
 def permeability(case, seed: int) -> tuple[float, int, int]:
-    net, *_ = build_network(case, seed)
-    return solve_darcy(net, height=CELL_HEIGHT).permeability, net.n_pipes, net.n_domains
+    """Steady k of the case's network on aperture draw ``seed``, with its pipe and domain counts."""
+    net, height, *_ = build_network(case, seed)  # height: the injection 'area' H, as in read_darcy_run
+    return solve_darcy(net, height=height).permeability, net.n_pipes, net.n_domains
 
 
 def main(argv=None) -> int:
@@ -51,11 +51,8 @@ def main(argv=None) -> int:
     print("|---|---|---|---|---|---|---|")
     for gap in GAPS:
         case = replace(base, contact_gap=gap)
-        ks = []
-        for seed in range(args.seeds):
-            k, pipes, domains = permeability(case, seed)
-            ks.append(k)
-        uniform, *_ = permeability(replace(case, aperture_spread=0.0), 0)
+        ks = [permeability(case, seed)[0] for seed in range(args.seeds)]
+        uniform, pipes, domains = permeability(replace(case, aperture_spread=0.0), 0)  # same pipes, any seed
         k = float(np.mean(ks))
         print(f"| {gap:g} | {pipes} | {domains} | {k:.3e} ({min(ks):.3e}-{max(ks):.3e}) | {uniform:.3e} "
               f"| {k / PAPER_PERMEABILITY:.2f} | {a_mean * 1e3 * (PAPER_PERMEABILITY / k) ** (1 / 3):.3f} |")
