@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .flow.diagnostics import classify_regime, early_peak, fractal_dimension, mass_radius_dimension
+from .flow.diagnostics import classify_regime, early_peak, regime_at_breakthrough, fractal_dimension, mass_radius_dimension
 from .flow.fluids import WEAK_COMPRESSION
 from .plots import plot_pattern, plot_pressure
 from .rundir import atomic_run_directory, write_json, write_rows, write_toml
@@ -50,7 +50,9 @@ def summarize(sc, model, state, rec, d_f: float | None = None) -> dict:
     two_phase = sc.setup.two_phase
     if d_f is None:
         d_f = pattern_fractal_dimension(sc, state) if two_phase and state.invaded.any() else float("nan")
-    regime = classify_regime(d_f, float(np.median(p_in)), float(np.std(entry))) if two_phase else "single phase"
+    regime = "single phase"
+    if two_phase:
+        regime = regime_at_breakthrough(rec.status, classify_regime(d_f, float(np.median(p_in)), float(np.std(entry))))
     return {
         "case": sc.case.name,
         "status": rec.status,

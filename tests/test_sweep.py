@@ -302,6 +302,23 @@ def test_collect_rejects_a_directory_without_runs(tmp_path):
     assert list(tmp_path.iterdir()) == []  # nothing written
 
 
+def test_collect_takes_only_lenormand_runs_and_writes_nothing_without_one(tmp_path, capsys):
+    # a new-user pass: collect on a radial run directory wrote sweep.csv and phase_diagram.png
+    # into it. Lattice (chen) and single-phase (darcy) runs are no point of Lenormand's diagram
+    from hmdem.hele_shaw import main as run_main
+
+    for case in ("vf", "chen", "darcy"):
+        assert run_main(["linear", "--case", case, "--max-steps", "2", "--out", str(tmp_path / case), "--quiet"]) == 0
+    assert sweep_main(["collect", str(tmp_path)]) == 0
+    assert [r["run"] for r in read_table(tmp_path / "sweep.csv")] == ["vf"]
+    assert "2 other run directories left out" in capsys.readouterr().err
+    before = sorted(p.name for p in (tmp_path / "chen").iterdir())
+    assert sweep_main(["collect", str(tmp_path / "chen")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no run directories of linear two-phase" in err[0]
+    assert sorted(p.name for p in (tmp_path / "chen").iterdir()) == before  # nothing written
+
+
 def test_runs_kept_aside_and_partial_writes_are_not_read_as_runs(tmp_path):
     # a run kept as <out>.unsaved-XXXX (another process took its name, hmdem.rundir) or still
     # being written (.NAME.partial-XXXX) is no row of the sweep table: its point has its run

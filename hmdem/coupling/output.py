@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..flow.diagnostics import regime_at_breakthrough
 from ..flow.fluids import FluidPair
 from ..plots import plot_force_chains, plot_fracture_chronology
 from ..report import pattern_fractal_dimension, radial_pattern_dimension, write_run
@@ -57,7 +58,7 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None) -> 
     timing = fracture_timing(opened, model.opened_time, net.pipe_domains, model.wetted_time, state.invasion_time)
     chronology = chronology_counts(timing, opened, model.opened_time)
     extra = {
-        "regime": classify_radial_regime(int(opened.sum()), d_f),
+        "regime": regime_at_breakthrough(rec.status, classify_radial_regime(int(opened.sum()), d_f)),
         "fractal_dimension": d_f,
         "fractal_dimension_box_counting": d_box,
         "n_opened_contacts": int(opened.sum()),

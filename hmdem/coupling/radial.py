@@ -16,6 +16,7 @@ from importlib import resources
 import numpy as np
 
 from ..cases import CP, MPA, rate_from_ca_star
+from ..flow.diagnostics import UNDETERMINED
 from ..flow.fluids import FluidPair
 from ..flow.simulation import FlowSetup
 from ..network import build_contact_network, find_contacts
@@ -176,7 +177,7 @@ def classify_radial_regime(n_opened_contacts: int, fractal_dimension: float) -> 
     if n_opened_contacts == 0:
         return "infiltration"
     if not math.isfinite(fractal_dimension):
-        return "undetermined"
+        return UNDETERMINED
     if fractal_dimension >= 1.90:
         return "infiltration-dominated with fracturing"
     return "fracturing-dominated"

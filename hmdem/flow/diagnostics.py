@@ -93,6 +93,14 @@ def mass_radius_dimension(net: Network, domain_mask: np.ndarray, centre, smalles
 
 
 VISCOUS_TO_CAPILLARY_THRESHOLD = 10.0
+UNDETERMINED = "undetermined"
+
+
+def regime_at_breakthrough(status: str, regime: str) -> str:
+    """A regime is read on the pattern at breakthrough (Lenormand's and Huang's both are); a run
+    stopped before it (interrupted, ``--max-steps``, ``--t-max``, diverged) holds a partial
+    pattern, so its regime is "undetermined" (docs/decisions.md #76)."""
+    return regime if status == "breakthrough" else UNDETERMINED
 
 
 def classify_regime(fractal_dim: float, injection_pressure_median: float, entry_pressure_spread: float) -> str:
@@ -106,7 +114,7 @@ def classify_regime(fractal_dim: float, injection_pressure_median: float, entry_
     the viscous field always selects.
     """
     if not np.isfinite(fractal_dim):
-        return "undetermined"
+        return UNDETERMINED
     if fractal_dim >= 1.90:
         return "stable displacement"
     if injection_pressure_median < VISCOUS_TO_CAPILLARY_THRESHOLD * entry_pressure_spread:

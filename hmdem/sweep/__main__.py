@@ -6,8 +6,8 @@
 
 ``lenormand`` runs the linear Hele-Shaw model over a grid of log10 M and log10 Ca* with K
 aperture seeds each; re-running it with the same ``--out`` resumes (finished runs are kept,
-failed ones retried). ``collect`` writes sweep.csv and phase_diagram.png for any directory of
-run directories, e.g. a ``yade-batch`` job of ``yade_scripts/hele_shaw_linear.py``.
+failed ones retried). ``collect`` writes sweep.csv and phase_diagram.png for the linear
+two-phase runs under a directory, e.g. a ``yade-batch`` job of ``yade_scripts/hele_shaw_linear.py``.
 """
 
 from __future__ import annotations
@@ -136,11 +136,18 @@ def run_lenormand(args) -> int:
 def run_collect(args) -> int:
     if not args.dir.is_dir():
         raise InputError(f"dir: no such directory {str(args.dir)!r}")
-    from .table import collect
+    from .table import collect, other_run_directories
 
     rows = collect(args.dir)
+    others = other_run_directories(args.dir)
+    named = ", ".join(str(d) for d in others[:3]) + (", ..." if len(others) > 3 else "")
+    skipped = (f"; {len(others)} other run director{'y' if len(others) == 1 else 'ies'} left out ({named}: "
+               "radial, lattice, single-phase or unreadable)") if others else ""
     if not rows:
-        raise InputError(f"dir: no run directories (summary.json + config.toml) under {str(args.dir)!r}")
+        raise InputError(f"dir: no run directories of linear two-phase (Lenormand) runs under {str(args.dir)!r}"
+                         + skipped)
+    if others:
+        print(f"{PROG}: note: {len(rows)} Lenormand runs collected" + skipped, file=sys.stderr)
     write_tables(args.dir, rows)
     print(f"{len(rows)} runs -> {args.dir / 'sweep.csv'}, {args.dir / 'phase_diagram.png'}")
     return 0

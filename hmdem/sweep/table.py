@@ -37,6 +37,24 @@ def run_directories(root: Path) -> list[Path]:
     return found
 
 
+def lenormand_run(run_dir: Path) -> bool:
+    """Whether a run directory holds a point of Lenormand's diagram: a two-phase run of the
+    linear cell (``hele_shaw linear``, geometry "lenormand"). Radial, lattice and single-phase
+    runs, and directories whose files do not parse, are not."""
+    try:
+        summary = json.loads((run_dir / "summary.json").read_text())
+        config = tomllib.loads((run_dir / "config.toml").read_text())
+        return (config["case"]["geometry"] == "lenormand" and summary["regime"] != "single phase"
+                and all(k in summary for k in ("ca_star", "viscosity_ratio")))
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+
+
+def other_run_directories(root: Path) -> list[Path]:
+    """Run directories under ``root`` that :func:`collect` leaves out (not Lenormand points)."""
+    return [d for d in run_directories(root) if not lenormand_run(d)]
+
+
 def run_row(root: Path, run_dir: Path) -> dict:
     """One sweep.csv row from a run directory (Ca = Ca* a_mean / L, seed 004 Eq. 24)."""
     summary = json.loads((run_dir / "summary.json").read_text())
@@ -68,9 +86,10 @@ def failed_rows(root: Path) -> list[dict]:
 
 
 def collect(root: Path) -> list[dict]:
-    """All rows of a sweep directory, ordered by M, Ca*, seed."""
+    """All rows of a sweep directory, ordered by M, Ca*, seed: its Lenormand runs and the
+    manifest's failed points."""
     root = Path(root)
-    rows = [run_row(root, d) for d in run_directories(root)]
+    rows = [run_row(root, d) for d in run_directories(root) if lenormand_run(d)]
     by_run = {r["run"]: r for r in rows}
     for failed in failed_rows(root):
         if failed["run"] in by_run:  # a directory left by a run stopped on a failed solve
