@@ -47,7 +47,7 @@ calibrate: setup
 	$(PY) -m hmdem.calibrate darcy
 
 packing: setup
-	$(PY) -m hmdem.dem.packing --out hmdem/data/lenormand_packing.npz
+	$(PY) -m hmdem.dem.packing --overwrite --out hmdem/data/lenormand_packing.npz
 
 huang-packing: setup
 	$(PY) -m hmdem.dem.compaction --overwrite --out hmdem/data/huang_packing.npz

@@ -73,6 +73,7 @@ def int_at_least(minimum: int, allowed: str | None = None):
             raise argparse.ArgumentTypeError(f"must be {allowed}, got {text!r}")
         return value
 
+    parse.minimum = minimum
     return parse
 
 
@@ -191,6 +192,22 @@ def check_out_parent(out: Path) -> None:
             os.rmdir(probe)
 
 
+def check_packing_out(parser: argparse.ArgumentParser, out: Path, overwrite: bool) -> None:
+    """A packing command's ``--out``: an .npz file (numpy would append the suffix, and the file
+    would not be the one named), not a directory, new unless ``overwrite``, somewhere writable;
+    otherwise ``parser.error`` (one line, exit 2)."""
+    if out.suffix != ".npz":
+        parser.error(f"--out: must end in .npz, got {str(out)!r}")
+    if out.is_dir():
+        parser.error(f"--out: {str(out)!r} is a directory; name the packing file to write")
+    if out.exists() and not overwrite:  # a packing is minutes of work
+        parser.error(f"--out: {str(out)!r} already exists; choose a new file or add --overwrite")
+    try:
+        check_out_parent(out)
+    except InputError as exc:
+        parser.error(str(exc))
+
+
 def exists(path: Path) -> bool:
     """``path.exists()``, with a directory the user may not search as an --out error."""
     try:
@@ -210,3 +227,20 @@ def read_packing(path: Path):
         return DiscPacking.load(path)
     except Exception as exc:  # not an npz, or an npz without a packing's arrays
         raise InputError(f"--packing: cannot read a packing from {str(path)!r} ({type(exc).__name__})") from None
+
+
+def check_aperture_fits_grains(mean_aperture: float, radii, aperture_given: bool) -> None:
+    """An :class:`InputError` when the mean pipe aperture is wider than the median grain: a
+    throat between two discs is no wider than a disc (the Lenormand sample has 0.42 mm
+    against 2 mm, Chen's lattice 0.25 against 0.5 mm). It catches a --mean-aperture in the
+    wrong unit and a packing of the Huang sample's 34 um grains in a linear run."""
+    import numpy as np
+
+    diameter = 2.0 * float(np.median(radii))
+    if mean_aperture <= diameter:
+        return
+    if aperture_given:
+        raise InputError(f"--mean-aperture: must not exceed the packing's median grain diameter {diameter:.4g} m, "
+                         f"got {mean_aperture:g}")
+    raise InputError(f"--packing: its median grain diameter {diameter:.4g} m is narrower than the case's mean "
+                     f"aperture {mean_aperture:g} m; use a packing of the Lenormand scale")

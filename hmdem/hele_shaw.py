@@ -15,8 +15,9 @@ from pathlib import Path
 
 from . import __version__
 from .cases import CASES
-from .cli import (InputError, OneLineParser, add_contact_arguments, dispatch, interrupted_status, local_damping,
-                  new_run_directory, non_negative_int, non_negative_number, positive_int, positive_number, read_packing)
+from .cli import (InputError, OneLineParser, add_contact_arguments, check_aperture_fits_grains, dispatch,
+                  interrupted_status, local_damping, new_run_directory, non_negative_int, non_negative_number,
+                  positive_int, positive_number, read_packing)
 from .flow.darcy_transient import STEADY_T_D, read_darcy_test
 from .flow.fluids import WEAK_COMPRESSION
 from .network.contact_graph import NEAR_CONTACT_GAP
@@ -201,10 +202,13 @@ def run_linear(args) -> int:
     from .flow.simulation import FlowModel
 
     if args.packing is not None:
+        if CASES[args.case].geometry == "lattice":
+            raise InputError(f"--packing: the {args.case} case is a square lattice (App. D.2); it takes no packing")
         read_packing(args.packing)  # a missing or unreadable file stops here, before any work
     out = new_run_directory(args.out, args.case)
     case = make_case(args)
     sc = build_scenario(case, seed=args.seed, inlet=args.inlet, scheme=args.scheme, packing_path=args.packing)
+    check_aperture_fits_grains(case.mean_aperture, sc.packing_radii, args.mean_aperture is not None)
     if args.max_steps is not None:
         sc.setup.max_steps = args.max_steps
     elif args.scheme == "explicit" and args.t_max is None:
@@ -295,6 +299,10 @@ def run_radial(args) -> int:
     from .dem.runs import start_grains
 
     packing = None if args.packing is None else read_packing(args.packing)
+    if packing is not None and not packing.confining_stress > 0:
+        # Eqs. 13-14 open the apertures from the contact forces a servo-compacted sample carries
+        raise InputError(f"--packing: {str(args.packing)!r} records no confining stress, so it is not a "
+                         "compacted sample; make one with python -m hmdem.dem.compaction")
     if args.one_way_volume is not None and not args.one_way:
         raise InputError("--one-way-volume: only with --one-way (the P-V iteration always puts dV in)")
     out = new_run_directory(args.out, args.case)

@@ -15,6 +15,7 @@ from hmdem.coupling.radial import default_huang_packing_path
 from hmdem.hele_shaw import main
 
 CMD = [sys.executable, "-m", "hmdem.hele_shaw"]
+DATA = Path(__file__).resolve().parent.parent / "hmdem" / "data"
 
 
 @pytest.mark.parametrize("args,name", [
@@ -49,6 +50,13 @@ CMD = [sys.executable, "-m", "hmdem.hele_shaw"]
     # a file that is not a packing: one line, before YADE or the run directory
     (["radial", "--packing", __file__], "--packing"),
     (["linear", "--packing", __file__], "--packing"),
+    # packings of the other kind (a new-user pass): the Huang sample's 34 um grains under the
+    # Lenormand 0.42 mm apertures; an uncompacted packing with no contact forces for Eqs. 13-14;
+    # a lattice case takes none; an aperture in the wrong unit
+    (["linear", "--packing", str(DATA / "huang_packing.npz")], "--packing"),
+    (["radial", "--packing", str(DATA / "lenormand_packing.npz")], "--packing"),
+    (["linear", "--case", "chen", "--packing", str(DATA / "lenormand_packing.npz")], "--packing"),
+    (["linear", "--mean-aperture", "0.5"], "--mean-aperture"),
 ])
 def test_bad_input_one_line_exit_2_nothing_written(tmp_path, args, name):
     out = tmp_path / "run"

@@ -56,6 +56,41 @@ def test_shipped_packing_is_reproduced_by_its_command(tmp_path):
     np.testing.assert_array_equal(new.contacts, shipped.contacts)
 
 
+@pytest.mark.parametrize("args,flag", [
+    (["--n", "0"], "--n"),
+    (["--size", "-1"], "--size"),
+    (["--porosity", "-0.1"], "--porosity"),
+    (["--porosity", "0.05"], "--porosity"),  # denser than the hexagonal packing's 0.0931
+    (["--spread", "1"], "--spread"),
+    (["--mean-radius", "0.01"], "--mean-radius"),  # 12 discs in the 65 mm box
+    (["--n", "100", "--mean-radius", "1e-3"], "--mean-radius"),
+    (["--seed", "-1"], "--seed"),
+    (["--out", "p"], "--out"),  # numpy would write p.npz
+    (["--out", "kept.npz"], "--out"),  # exists, no --overwrite
+])
+def test_packing_bad_input_is_one_line_exit_2_nothing_written(tmp_path, monkeypatch, capsys, args, flag):
+    # a new-user pass: these gave numpy tracebacks, or were accepted (--porosity -0.1)
+    from hmdem.dem.packing import main
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "kept.npz").write_bytes(b"keep")
+    with pytest.raises(SystemExit) as exc:
+        main(args if "--out" in args else [*args, "--out", "p.npz"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"python -m hmdem.dem.packing: {flag}")
+    assert [p.name for p in tmp_path.iterdir()] == ["kept.npz"] and (tmp_path / "kept.npz").read_bytes() == b"keep"
+
+
+def test_mean_radius_gives_the_shipped_packings_count():
+    # n = (1 - porosity) W^2 / (pi r^2 (1 + spread^2 / 3)), E[r^2] of radii r U[1 - spread, 1 + spread]
+    from hmdem.dem.packing import grain_count_for
+    from hmdem.scenario import load_packing
+
+    pk = load_packing()
+    assert grain_count_for(pk.radii.mean(), 0.05, pk.porosity, pk.box[0]) == len(pk.radii) == 1188
+
+
 @pytest.mark.yade
 def test_shipped_huang_sample_is_reproduced_by_its_command(tmp_path):
     # `make huang-packing` (python -m hmdem.dem.compaction, seed 0) regenerates the shipped file

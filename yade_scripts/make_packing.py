@@ -1,8 +1,9 @@
 """Regenerate the default Lenormand packing from inside YADE.
 
-    yade -n -x yade_scripts/make_packing.py [OUT.npz]     # default: lenormand_packing.npz here
+    yade -n -x yade_scripts/make_packing.py [OUT.npz [OPTIONS]]   # default: lenormand_packing.npz here
 
-The same as `make packing` / `python -m hmdem.dem.packing --out FILE`. The yade launcher runs
+The same as `make packing` / `python -m hmdem.dem.packing --out FILE [OPTIONS]` (e.g.
+--overwrite, --seed 3; an existing OUT.npz is kept unless --overwrite). The yade launcher runs
 Debian's Python, so the repository root is put on sys.path to find hmdem.
 """
 import sys
@@ -14,5 +15,5 @@ sys.path.insert(0, str(Path(sys.argv[0]).resolve().parent.parent))
 from hmdem.dem.packing import main  # noqa: E402
 
 out = sys.argv[1] if len(sys.argv) > 1 else "lenormand_packing.npz"
-code = main(["--out", out])
+code = main(["--out", out, *sys.argv[2:]])
 sys.exit(code)

@@ -139,7 +139,7 @@ def compact_sample(n: int = 1395, size: float = 1.25e-3, r_min: float = 13.0e-6,
 def main(argv=None) -> int:
     from pathlib import Path
 
-    from ..cli import (InputError, OneLineParser, add_contact_arguments, check_out_parent, dispatch, grain_count,
+    from ..cli import (OneLineParser, add_contact_arguments, check_packing_out, dispatch, grain_count,
                        non_negative_int, positive_number)
 
     prog = "python -m hmdem.dem.compaction"
@@ -161,16 +161,7 @@ def main(argv=None) -> int:
                         help="replace --out if it exists (make huang-packing regenerates the shipped file)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
-    if args.out.suffix != ".npz":  # numpy would append it, and the file would not be the one named
-        parser.error(f"--out: must end in .npz, got {str(args.out)!r}")
-    if args.out.is_dir():
-        parser.error(f"--out: {str(args.out)!r} is a directory; name the packing file to write")
-    if args.out.exists() and not args.overwrite:  # a calibrated packing is minutes of work
-        parser.error(f"--out: {str(args.out)!r} already exists; choose a new file or add --overwrite")
-    try:
-        check_out_parent(args.out)
-    except InputError as exc:
-        parser.error(str(exc))
+    check_packing_out(parser, args.out, args.overwrite)
     args.command = "compaction"  # dispatch runs commands by name; this CLI has the one
     # Ctrl-C or SIGTERM: one line, exit 130 or 143, nothing written (the file is all or nothing)
     return dispatch(prog, parser, args, {"compaction": write_packing})

@@ -8,9 +8,10 @@ deterministic for a given seed (YADE runs single-threaded here).
 
 from __future__ import annotations
 
+import math
 import time
+
 import numpy as np
-from scipy.spatial import cKDTree
 
 from ..network.packing import CONTACT_STIFFNESS, GRAIN_DENSITY, DiscPacking
 from .discs import add_discs, disc_contacts, disc_engines, disc_state
@@ -88,23 +89,68 @@ def generate_packing(
     return DiscPacking(centres, final_radii, contacts, tuple(box), seed, contact_stiffness=k_n)
 
 
-def main(argv=None) -> int:
-    import argparse
+HEXAGONAL_POROSITY = 1.0 - math.pi / (2.0 * math.sqrt(3.0))  # the densest disc packing's, 0.0931
 
-    parser = argparse.ArgumentParser(prog="python -m hmdem.dem.packing", description="Generate a disc packing with YADE.")
-    parser.add_argument("--out", required=True)
-    parser.add_argument("--n", type=int, default=1188)
-    parser.add_argument("--size", type=float, default=0.065, help="square box side [m]")
-    parser.add_argument("--mean-radius", type=float, default=1.0e-3)
-    parser.add_argument("--spread", type=float, default=0.05)
-    parser.add_argument("--porosity", type=float, default=0.117)
-    parser.add_argument("--seed", type=int, default=0)
+
+def grain_count_for(mean_radius: float, spread: float, porosity: float, size: float) -> int:
+    """Discs of mean radius r (radii r U[1 - spread, 1 + spread], E[r^2] = r^2 (1 + spread^2 / 3))
+    that fill a size x size box to ``porosity``."""
+    return round((1.0 - porosity) * size**2 / (math.pi * mean_radius**2 * (1.0 + spread**2 / 3.0)))
+
+
+def main(argv=None) -> int:
+    from pathlib import Path
+
+    from ..cli import (OneLineParser, check_packing_out, dispatch, grain_count, non_negative_int, number_in,
+                       positive_number)
+
+    prog = "python -m hmdem.dem.packing"
+
+    class Parser(OneLineParser):
+        command = prog
+
+    parser = Parser(prog=prog, description="Generate a random dense disc packing with YADE (the Lenormand "
+                                           "sample by default). The radii follow from --n, --size and --porosity.")
+    parser.add_argument("--out", type=Path, required=True, help="packing file to write, ending in .npz")
+    size = parser.add_mutually_exclusive_group()
+    size.add_argument("--n", type=grain_count, help="number of discs (default 1188)")
+    size.add_argument("--mean-radius", type=positive_number,
+                      help="mean disc radius [m], instead of --n: the count that fills the box to --porosity")
+    parser.add_argument("--size", type=positive_number, default=0.065, help="square box side [m] (default %(default)g)")
+    parser.add_argument("--spread", type=number_in("a number in [0, 1)", lambda v: 0 <= v < 1), default=0.05,
+                        help="radii uniform in mean (1 +- spread) (default %(default)g)")
+    parser.add_argument("--porosity", default=0.117,
+                        type=number_in(f"a number in ({HEXAGONAL_POROSITY:.4f}, 1): no disc packing is denser than "
+                                       "the hexagonal one", lambda v: HEXAGONAL_POROSITY < v < 1),
+                        help="porosity of the box (default %(default)g)")
+    parser.add_argument("--seed", type=non_negative_int, default=0, help="seed of the radii and the seeding "
+                                                                          "(default %(default)d)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace --out if it exists (make packing regenerates the shipped file)")
     args = parser.parse_args(argv)
+    check_packing_out(parser, args.out, args.overwrite)
+    if args.mean_radius is not None:
+        args.n = grain_count_for(args.mean_radius, args.spread, args.porosity, args.size)
+        if args.n < grain_count.minimum:
+            parser.error(f"--mean-radius: {args.mean_radius:g} m fills the box with {args.n} discs; "
+                         f"at least {grain_count.minimum} are needed")
+    args.command = "packing"  # dispatch runs commands by name; this CLI has the one
+    # Ctrl-C or SIGTERM: one line, exit 130 or 143, nothing written (the file is all or nothing)
+    return dispatch(prog, parser, args, {"packing": write_packing})
+
+
+def write_packing(args) -> int:
+    """The command's work: generate, then write ``--out`` in one go."""
+    from ..rundir import replaced_atomically
+
     t0 = time.perf_counter()
-    pk = generate_packing(args.n, (args.size, args.size), args.mean_radius, args.spread, args.porosity, args.seed)
-    pk.save(args.out)
-    print(f"{len(pk.radii)} discs, porosity {pk.porosity:.4f}, {len(pk.contacts)} contacts, "
-          f"{time.perf_counter() - t0:.1f} s -> {args.out}")
+    mean_radius = 1.0e-3 if args.mean_radius is None else args.mean_radius  # sets the walls' stiffness only
+    pk = generate_packing(args.n or 1188, (args.size, args.size), mean_radius, args.spread, args.porosity, args.seed)
+    args.out.absolute().parent.mkdir(parents=True, exist_ok=True)
+    with replaced_atomically(args.out) as tmp:  # a kill while writing leaves no part of a file
+        pk.save(tmp)
+    print(f"{len(pk.radii)} discs, mean radius {pk.radii.mean() * 1e3:.4g} mm, porosity {pk.porosity:.4f}, "
+          f"{len(pk.contacts)} contacts, {time.perf_counter() - t0:.1f} s -> {args.out}")
     return 0
 
 
