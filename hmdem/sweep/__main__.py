@@ -18,7 +18,10 @@ import time
 from pathlib import Path
 
 from .. import __version__
-from ..cli import InputError, OneLineParser, check_out_parent, dispatch, interrupted_status, positive_int, read_packing
+from ..cases import CASES
+from ..cli import (InputError, OneLineParser, check_aperture_fits_grains, check_out_parent, dispatch,
+                   interrupted_status, positive_int, read_packing)
+from .grid import LOG_CA_STAR_RANGE, LOG_M_RANGE
 
 PROG = "python -m hmdem.sweep"
 DEFAULT_LOG_M = "-5:2:5"
@@ -29,13 +32,18 @@ class _Parser(OneLineParser):
     command = PROG
 
 
-def axis(text: str):
-    from .grid import parse_axis
+def axis_within(bounds: tuple[float, float]):
+    """argparse type: a ``START:STOP:COUNT`` axis whose ends lie within ``bounds``."""
 
-    try:
-        return parse_axis(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
+    def axis(text: str):
+        from .grid import parse_axis
+
+        try:
+            return parse_axis(text, bounds)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    return axis
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -43,10 +51,13 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=__version__)
     sub = parser.add_subparsers(dest="command", parser_class=_Parser)
     len_ = sub.add_parser("lenormand", help="the Lenormand phase diagram: linear runs over (M, Ca*) and seeds")
-    len_.add_argument("--log-m", type=axis, default=axis(DEFAULT_LOG_M),
-                      help=f"log10 M = log10(eta_inv / eta_def) as START:STOP:COUNT (default {DEFAULT_LOG_M})")
-    len_.add_argument("--log-ca", type=axis, default=axis(DEFAULT_LOG_CA),
-                      help=f"log10 Ca* (seed 004 Eq. 24) as START:STOP:COUNT (default {DEFAULT_LOG_CA})")
+    log_m, log_ca = axis_within(LOG_M_RANGE), axis_within(LOG_CA_STAR_RANGE)
+    len_.add_argument("--log-m", type=log_m, default=log_m(DEFAULT_LOG_M),
+                      help=f"log10 M = log10(eta_inv / eta_def) as START:STOP:COUNT, ends in "
+                           f"[{LOG_M_RANGE[0]:g}, {LOG_M_RANGE[1]:g}] (default {DEFAULT_LOG_M})")
+    len_.add_argument("--log-ca", type=log_ca, default=log_ca(DEFAULT_LOG_CA),
+                      help=f"log10 Ca* (seed 004 Eq. 24) as START:STOP:COUNT, ends in "
+                           f"[{LOG_CA_STAR_RANGE[0]:g}, {LOG_CA_STAR_RANGE[1]:g}] (default {DEFAULT_LOG_CA})")
     len_.add_argument("--seeds", type=positive_int, default=1, help="aperture seeds per point, 0..K-1 (default 1)")
     len_.add_argument("--workers", type=positive_int,
                       help="worker processes of the embedded Dask cluster (default: one per core)")
@@ -93,9 +104,10 @@ def run_lenormand(args) -> int:
     from .execute import run_sweep
     from .grid import lenormand_points, lenormand_spec
     from .manifest import DONE, FAILED, Manifest
+    from .runner import BASE_CASE
 
-    if args.packing is not None:
-        read_packing(args.packing)  # a missing or unreadable file is one line, not a failure per point
+    if args.packing is not None:  # a missing, unreadable or misfit file is one line, not a failure per point
+        check_aperture_fits_grains(CASES[BASE_CASE].mean_aperture, read_packing(args.packing).radii, False)
     if args.scheduler is not None:
         check_scheduler_address(args.scheduler)
     out = args.out or Path("runs") / f"lenormand-{time.strftime('%Y%m%d-%H%M%S')}"

@@ -81,7 +81,8 @@ def start_client(workers: int | None, scheduler: str | None):
         return Client(scheduler, timeout="30s"), None
     with dask.config.set(LOCAL_WORKER_CONFIG):
         cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=50)  # errors: in the manifest
+                               dashboard_address=None, silence_logs=50,  # errors: in the manifest
+                               preload=["hmdem.sweep.worker_setup"])  # Ctrl-C is the client's alone
     return Client(cluster), cluster
 
 

@@ -23,8 +23,18 @@ class Axis:
         return f"{self.start:g}:{self.stop:g}:{self.count}"
 
 
-def parse_axis(text: str) -> Axis:
-    """``"A:B:N"`` -> Axis(A, B, N); ValueError naming what is allowed otherwise."""
+# Where the linear model's runs reach breakthrough, measured with the sd case at the grid's
+# corners (decisions #77): below Ca* = 1e-8 the pressure solve fails (residual ~1e-3 at 1e-9
+# and 1e-10); up to 1e4 the runs finish, beyond the constant bulk modulus's range already
+# (p/K 2.8 at M = 1e-5). Lenormand's diagram spans about the same range (log Ca -10..0 in his
+# micromodel, log Ca* -7.4..2.6).
+LOG_M_RANGE = (-6.0, 6.0)
+LOG_CA_STAR_RANGE = (-8.0, 4.0)
+
+
+def parse_axis(text: str, bounds: tuple[float, float] = (-math.inf, math.inf)) -> Axis:
+    """``"A:B:N"`` -> Axis(A, B, N) with A and B within ``bounds``; ValueError naming what is
+    allowed otherwise."""
     parts = text.split(":")
     if len(parts) != 3:
         raise ValueError(f"expected START:STOP:COUNT (e.g. -5:2:5), got {text!r}")
@@ -35,6 +45,9 @@ def parse_axis(text: str) -> Axis:
         raise ValueError(f"expected numbers START:STOP and an integer COUNT, got {text!r}") from None
     if not (math.isfinite(start) and math.isfinite(stop)):
         raise ValueError(f"START and STOP must be finite, got {text!r}")
+    low, high = bounds
+    if not (low <= start <= high and low <= stop <= high):
+        raise ValueError(f"START and STOP must lie in [{low:g}, {high:g}], got {text!r}")
     if count < 1:
         raise ValueError(f"COUNT must be >= 1, got {text!r}")
     if count == 1 and start != stop:
