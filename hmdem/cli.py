@@ -60,27 +60,30 @@ non_negative_number = number_in("a finite number >= 0", lambda v: v >= 0)
 local_damping = number_in("a number in [0, 1) (YADE's local damping)", lambda v: 0 <= v < 1)
 
 
-def int_at_least(minimum: int, allowed: str | None = None):
-    """argparse type: an integer >= ``minimum``; ``allowed`` words the one-line error."""
-    allowed = allowed or f"an integer >= {minimum}"
+def int_at_least(minimum: int, allowed: str | None = None, maximum: int | None = None):
+    """argparse type: an integer >= ``minimum`` (and <= ``maximum``, if given); ``allowed``
+    words the one-line error."""
+    allowed = allowed or (f"an integer >= {minimum}" if maximum is None else f"an integer in [{minimum}, {maximum}]")
 
     def parse(text: str) -> int:
         try:
             value = int(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"must be {allowed}, got {text!r}") from None
-        if value < minimum:
+        if value < minimum or (maximum is not None and value > maximum):
             raise argparse.ArgumentTypeError(f"must be {allowed}, got {text!r}")
         return value
 
-    parse.minimum = minimum
     return parse
 
 
 non_negative_int = int_at_least(0, "a non-negative integer")
 positive_int = int_at_least(1)
 MIN_GRAINS = 50  # fewer discs do not make a packing with a load-bearing interior
-grain_count = int_at_least(MIN_GRAINS)
+# more discs than YADE places and relaxes in reasonable time here (benchmarks/scaling.py goes to
+# 20,000); a typo such as --n 1000000000000 would otherwise end in a numpy MemoryError
+MAX_GRAINS = 200_000
+grain_count = int_at_least(MIN_GRAINS, maximum=MAX_GRAINS)
 
 
 def add_contact_arguments(parser: argparse.ArgumentParser, *, stiffness: bool = True, friction: bool = True) -> None:
@@ -229,18 +232,19 @@ def read_packing(path: Path):
         raise InputError(f"--packing: cannot read a packing from {str(path)!r} ({type(exc).__name__})") from None
 
 
-def check_aperture_fits_grains(mean_aperture: float, radii, aperture_given: bool) -> None:
+def check_aperture_fits_grains(mean_aperture: float, radii, aperture_given: bool, can_set: bool = True) -> None:
     """An :class:`InputError` when the mean pipe aperture is wider than the median grain: a
     throat between two discs is no wider than a disc (the Lenormand sample has 0.42 mm
     against 2 mm, Chen's lattice 0.25 against 0.5 mm). It catches a --mean-aperture in the
-    wrong unit and a packing of the Huang sample's 34 um grains in a linear run."""
+    wrong unit and a packing of the Huang sample's 34 um grains in a linear run. ``can_set``:
+    the command has a --mean-aperture (the message suggests it)."""
     import numpy as np
 
     diameter = 2.0 * float(np.median(radii))
     if mean_aperture <= diameter:
         return
     if aperture_given:
-        raise InputError(f"--mean-aperture: must not exceed the packing's median grain diameter {diameter:.4g} m, "
+        raise InputError(f"--mean-aperture: must not exceed the grains' median diameter {diameter:.4g} m, "
                          f"got {mean_aperture:g}")
-    raise InputError(f"--packing: its median grain diameter {diameter:.4g} m is narrower than the case's mean "
-                     f"aperture {mean_aperture:g} m; use a packing of the Lenormand scale")
+    raise InputError(f"--packing: its median grain diameter {diameter:.4g} m is narrower than the mean aperture "
+                     f"{mean_aperture:g} m; use coarser grains" + (" or a --mean-aperture below it" if can_set else ""))

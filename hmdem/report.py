@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .flow.diagnostics import classify_regime, early_peak, regime_at_breakthrough, fractal_dimension, mass_radius_dimension
+from .flow.diagnostics import (classify_regime, early_peak, fractal_dimension, mass_radius_dimension,
+                               regime_at_breakthrough)
 from .flow.fluids import WEAK_COMPRESSION
 from .plots import plot_pattern, plot_pressure
 from .rundir import atomic_run_directory, write_json, write_rows, write_toml

@@ -202,14 +202,20 @@ def test_embedded_workers_leave_ctrl_c_to_the_sweep():
     # and the sweep's own process, which keeps its handler, stops the run (hmdem/sweep/worker_setup.py)
     from hmdem.sweep.execute import start_client
 
-    client, cluster = start_client(1, None)
+    # as from a terminal: a shell's background job (CI's) starts with SIGINT ignored, and its
+    # workers would inherit that without the preload
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
-        assert client.submit(signal.getsignal, signal.SIGINT, pure=False).result() == signal.SIG_IGN
-        assert client.submit(signal.getsignal, signal.SIGTERM, pure=False).result() != signal.SIG_IGN
+        client, cluster = start_client(1, None)
+        try:
+            assert client.submit(signal.getsignal, signal.SIGINT, pure=False).result() == signal.SIG_IGN
+            assert client.submit(signal.getsignal, signal.SIGTERM, pure=False).result() != signal.SIG_IGN
+        finally:
+            client.close()
+            cluster.close()
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the sweep's own is kept
     finally:
-        client.close()
-        cluster.close()
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        signal.signal(signal.SIGINT, previous)
 
 
 def test_a_worker_crash_is_retried_and_gives_the_same_table(reference, packing, tmp_path, monkeypatch, by_value):
@@ -299,6 +305,22 @@ def test_yade_batch_runs_the_shipped_table_and_collect_aggregates_it(packing, tm
 
 
 @pytest.mark.yade
+def test_yade_script_refused_packing_is_one_line_exit_2(tmp_path):
+    # a table row whose packing the linear run refuses (the Huang sample's 34 um grains under
+    # 0.42 mm apertures): yade-batch logs one line and status 2, not a traceback
+    huang = ROOT / "hmdem" / "data" / "huang_packing.npz"
+    (tmp_path / "bad.table").write_text(f"description logM logCa seed packing out\n"
+                                        f"huang 2 1 0 '{huang}' '{tmp_path / 'run'}'\n")
+    env = {**os.environ, "YADE_BATCH": f"{tmp_path / 'bad.table'}:2"}  # as yade-batch starts a job
+    proc = subprocess.run(["yade", "-n", "-x", str(ROOT / "yade_scripts" / "hele_shaw_linear.py")], cwd=tmp_path,
+                          env=env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    assert "Traceback" not in proc.stderr
+    assert "hele_shaw_linear.py: --packing: its median grain diameter" in proc.stderr
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.yade
 @pytest.mark.parametrize("signum, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_yade_script_interrupted_exits_128_plus_signal_with_one_line_and_a_valid_directory(signum, status, tmp_path):
     # Ctrl-C or a batch system's SIGTERM to `yade -n -x yade_scripts/hele_shaw_linear.py` (the
@@ -333,8 +355,12 @@ def test_collect_takes_only_lenormand_runs_and_writes_nothing_without_one(tmp_pa
 
     for case in ("vf", "chen", "darcy"):
         assert run_main(["linear", "--case", case, "--max-steps", "2", "--out", str(tmp_path / case), "--quiet"]) == 0
+    # a run directory written before decisions #76 kept the regime of its partial pattern
+    summary_path = tmp_path / "vf" / "summary.json"
+    summary_path.write_text(json.dumps({**json.loads(summary_path.read_text()), "regime": "viscous fingering"}))
     assert sweep_main(["collect", str(tmp_path)]) == 0
-    assert [r["run"] for r in read_table(tmp_path / "sweep.csv")] == ["vf"]
+    rows = read_table(tmp_path / "sweep.csv")
+    assert [(r["run"], r["status"], r["regime"]) for r in rows] == [("vf", "max_steps", "undetermined")]
     assert "2 other run directories left out" in capsys.readouterr().err
     before = sorted(p.name for p in (tmp_path / "chen").iterdir())
     assert sweep_main(["collect", str(tmp_path / "chen")]) == 2

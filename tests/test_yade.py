@@ -63,6 +63,8 @@ def test_shipped_packing_is_reproduced_by_its_command(tmp_path):
     (["--porosity", "0.05"], "--porosity"),  # denser than the hexagonal packing's 0.0931
     (["--spread", "1"], "--spread"),
     (["--mean-radius", "0.01"], "--mean-radius"),  # 12 discs in the 65 mm box
+    (["--mean-radius", "1e-7"], "--mean-radius"),  # 1.2e11 discs: a numpy MemoryError before
+    (["--n", "1000000000000"], "--n"),
     (["--n", "100", "--mean-radius", "1e-3"], "--mean-radius"),
     (["--seed", "-1"], "--seed"),
     (["--out", "p"], "--out"),  # numpy would write p.npz

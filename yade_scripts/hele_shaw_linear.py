@@ -24,7 +24,7 @@ from yade import utils  # noqa: E402
 utils.readParamsFromTable(logM=2.0, logCa=1.0, seed=0, packing="", out="", noTableOk=True)
 from yade.params import table  # noqa: E402
 
-from hmdem.cli import sigterm_as_interrupt  # noqa: E402
+from hmdem.cli import InputError, sigterm_as_interrupt  # noqa: E402
 from hmdem.sweep.grid import SweepPoint  # noqa: E402
 from hmdem.sweep.runner import RunFailed, run_point  # noqa: E402
 
@@ -36,4 +36,7 @@ try:
 except RunFailed as exc:  # one line and the run's own exit status (yade-batch logs 130 / 143)
     print(f"{exc}; run directory {out}", file=sys.stderr)
     sys.exit(exc.exit_status)
+except InputError as exc:  # e.g. a table's packing that the linear run refuses: one line, exit 2
+    print(f"yade_scripts/hele_shaw_linear.py: {exc}", file=sys.stderr)
+    sys.exit(2)
 print(f"{point.run_id}: {summary['status']}, {summary['regime']}, D_f = {summary['fractal_dimension']}; run directory {out}")

@@ -14,6 +14,8 @@ sys.path.insert(0, str(Path(sys.argv[0]).resolve().parent.parent))
 
 from hmdem.dem.packing import main  # noqa: E402
 
-out = sys.argv[1] if len(sys.argv) > 1 else "lenormand_packing.npz"
-code = main(["--out", out, *sys.argv[2:]])
+# OUT is optional: options alone (e.g. --seed 3) go to the default file
+named = len(sys.argv) > 1 and not sys.argv[1].startswith("-")
+out = sys.argv[1] if named else "lenormand_packing.npz"
+code = main(["--out", out, *sys.argv[2 if named else 1:]])
 sys.exit(code)

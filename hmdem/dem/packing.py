@@ -101,8 +101,8 @@ def grain_count_for(mean_radius: float, spread: float, porosity: float, size: fl
 def main(argv=None) -> int:
     from pathlib import Path
 
-    from ..cli import (OneLineParser, check_packing_out, dispatch, grain_count, non_negative_int, number_in,
-                       positive_number)
+    from ..cli import (MAX_GRAINS, MIN_GRAINS, OneLineParser, check_packing_out, dispatch, grain_count,
+                       non_negative_int, number_in, positive_number)
 
     prog = "python -m hmdem.dem.packing"
 
@@ -113,7 +113,7 @@ def main(argv=None) -> int:
                                            "sample by default). The radii follow from --n, --size and --porosity.")
     parser.add_argument("--out", type=Path, required=True, help="packing file to write, ending in .npz")
     size = parser.add_mutually_exclusive_group()
-    size.add_argument("--n", type=grain_count, help="number of discs (default 1188)")
+    size.add_argument("--n", type=grain_count, help="number of discs (default 1188, the shipped packing's)")
     size.add_argument("--mean-radius", type=positive_number,
                       help="mean disc radius [m], instead of --n: the count that fills the box to --porosity")
     parser.add_argument("--size", type=positive_number, default=0.065, help="square box side [m] (default %(default)g)")
@@ -131,9 +131,9 @@ def main(argv=None) -> int:
     check_packing_out(parser, args.out, args.overwrite)
     if args.mean_radius is not None:
         args.n = grain_count_for(args.mean_radius, args.spread, args.porosity, args.size)
-        if args.n < grain_count.minimum:
+        if not MIN_GRAINS <= args.n <= MAX_GRAINS:
             parser.error(f"--mean-radius: {args.mean_radius:g} m fills the box with {args.n} discs; "
-                         f"at least {grain_count.minimum} are needed")
+                         f"between {MIN_GRAINS} and {MAX_GRAINS} are allowed")
     args.command = "packing"  # dispatch runs commands by name; this CLI has the one
     # Ctrl-C or SIGTERM: one line, exit 130 or 143, nothing written (the file is all or nothing)
     return dispatch(prog, parser, args, {"packing": write_packing})

@@ -66,7 +66,8 @@ def build_parser() -> argparse.ArgumentParser:
     len_.add_argument("--out", type=Path, help="sweep directory (default runs/lenormand-<time>); an existing "
                                               "sweep directory is resumed")
     len_.add_argument("--quiet", action="store_true", help="no progress bar")
-    col = sub.add_parser("collect", help="sweep.csv and phase_diagram.png of a directory of run directories")
+    col = sub.add_parser("collect", help="sweep.csv and phase_diagram.png of the linear two-phase runs under a "
+                                         "directory")
     col.add_argument("dir", type=Path, help="a sweep directory or a yade-batch output directory")
     return parser
 
@@ -107,7 +108,8 @@ def run_lenormand(args) -> int:
     from .runner import BASE_CASE
 
     if args.packing is not None:  # a missing, unreadable or misfit file is one line, not a failure per point
-        check_aperture_fits_grains(CASES[BASE_CASE].mean_aperture, read_packing(args.packing).radii, False)
+        check_aperture_fits_grains(CASES[BASE_CASE].mean_aperture, read_packing(args.packing).radii, False,
+                                   can_set=False)
     if args.scheduler is not None:
         check_scheduler_address(args.scheduler)
     out = args.out or Path("runs") / f"lenormand-{time.strftime('%Y%m%d-%H%M%S')}"

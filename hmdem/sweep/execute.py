@@ -82,7 +82,9 @@ def start_client(workers: int | None, scheduler: str | None):
     with dask.config.set(LOCAL_WORKER_CONFIG):
         cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
                                dashboard_address=None, silence_logs=50,  # errors: in the manifest
-                               preload=["hmdem.sweep.worker_setup"])  # Ctrl-C is the client's alone
+                               # Ctrl-C is the client's alone; the user's own preloads are kept
+                               preload=[*dask.config.get("distributed.worker.preload", []),
+                                        "hmdem.sweep.worker_setup"])
     return Client(cluster), cluster
 
 

@@ -11,6 +11,7 @@ import os
 import tomllib
 from pathlib import Path
 
+from ..flow.diagnostics import regime_at_breakthrough
 from ..rundir import UNSAVED, write_text_atomic
 from .runner import INCOMPLETE
 
@@ -63,6 +64,8 @@ def run_row(root: Path, run_dir: Path) -> dict:
     ca_star, m = summary["ca_star"], summary["viscosity_ratio"]
     ca = ca_star * case["mean_aperture_m"] / case["length_m"] if "length_m" in case else math.nan
     row = {k: summary.get(k) for k in COLUMNS if k in summary}
+    # a run directory written before decisions #76 may carry a regime read before breakthrough
+    row["regime"] = regime_at_breakthrough(summary.get("status"), summary.get("regime"))
     # log10 rounded to 1e-9: 10 ** 0.25 read back gives 0.24999999999999997, not the grid's 0.25
     row.update(run=run_dir.relative_to(root).as_posix(), log_m=round(math.log10(m), 9),
                log_ca_star=round(math.log10(ca_star), 9),
