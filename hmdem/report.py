@@ -128,8 +128,10 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
         np.savez_compressed(tmp / "network.npz", **arrays)
         np.savez_compressed(tmp / "state.npz", pressure=state.pressure, saturation=state.saturation,
                             invasion_time=state.invasion_time, t=state.t)
+        regime = summary["regime"] + (f" (stopped: {rec.status})" if rec.status != "breakthrough"
+                                      and summary["regime"] == "undetermined" else "")
         title = f"{sc.case.title}\nCa* = {sc.ca_star:.3g}, M = {sc.setup.fluids.viscosity_ratio:.3g}, t = {state.t:.4g} s, " \
-                f"{summary['regime']}, D_f = {summary['fractal_dimension']:.3f}"
+                f"{regime}, D_f = {summary['fractal_dimension']:.3f}"
         plot_pattern(tmp / "pattern.png", net, state.saturation, title, sc.packing_radii, overlay)
         marked = {"time": summary["early_peak_time_s"], "pressure": summary["early_peak_injection_pressure_pa"]}
         plot_pressure(tmp / "pressure.png", net, state.pressure, *rec.injection_pressure(),
