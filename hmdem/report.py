@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .flow.diagnostics import (classify_regime, early_peak, fractal_dimension, mass_radius_dimension,
-                               regime_at_breakthrough)
+from .flow.diagnostics import (UNDETERMINED, classify_regime, early_peak, fractal_dimension,
+                               mass_radius_dimension, regime_at_breakthrough)
 from .flow.fluids import WEAK_COMPRESSION
 from .plots import plot_pattern, plot_pressure
 from .rundir import atomic_run_directory, write_json, write_rows, write_toml
@@ -129,7 +129,7 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
         np.savez_compressed(tmp / "state.npz", pressure=state.pressure, saturation=state.saturation,
                             invasion_time=state.invasion_time, t=state.t)
         regime = summary["regime"] + (f" (stopped: {rec.status})" if rec.status != "breakthrough"
-                                      and summary["regime"] == "undetermined" else "")
+                                      and summary["regime"] == UNDETERMINED else "")
         title = f"{sc.case.title}\nCa* = {sc.ca_star:.3g}, M = {sc.setup.fluids.viscosity_ratio:.3g}, t = {state.t:.4g} s, " \
                 f"{regime}, D_f = {summary['fractal_dimension']:.3f}"
         plot_pattern(tmp / "pattern.png", net, state.saturation, title, sc.packing_radii, overlay)

@@ -1,7 +1,6 @@
 """Pressure forces on grains, seed 004 Eq. 8: digest §13.1 U5."""
 
 import numpy as np
-import pytest
 
 from hmdem.flow.grain_forces import grain_pressure_forces
 from hmdem.network import build_contact_network

@@ -182,7 +182,8 @@ class PressureSystem:
             B_size = np.abs(source_node) + self.pipe_source_to_nodes(np.abs(old_flux), sign_a=1.0)
             residual = self.residual(storage_node, source_node, p_old, g_open, orient, entry_pressure)
             increment = self.domain_values(self.solver.solve(A, B, residual=residual, b_size=B_size, storage=storage_node,
-                                                             floating=self.floating_components(g_open)))
+                                                             floating=self.floating_components(g_open),
+                                                             offset=self.node_values(p_old)))
             p = p_old + increment
             dp = p[self.pipe_a] - p[self.pipe_b]
             margin = np.where(front, orient * dp + entry_pressure, 0.0)

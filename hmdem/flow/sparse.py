@@ -93,7 +93,7 @@ class SpdSolver:
         return self._order
 
     def solve(self, A: sp.csr_matrix, b: np.ndarray, rtol: float = 1e-12, residual=None, b_size=None,
-              storage=None, floating=None) -> np.ndarray:
+              storage=None, floating=None, offset=None) -> np.ndarray:
         """x with A x = b.
 
         ``residual(x)``, if given, returns b - A x computed more accurately than from the stored
@@ -105,6 +105,8 @@ class SpdSolver:
         ``storage`` (the diagonal's storage part) and ``floating`` (per unknown: a component
         label, -1 where the component reaches a Dirichlet value) let a system whose floating
         components are singular in double precision be solved by :func:`floating_solve`.
+        ``offset``: the values x is an increment of (p^n for a pressure increment); they set the
+        round-off floor of an island's rows in :func:`floating_residual`.
         """
         n = A.shape[0]
         if n == 0:
@@ -129,8 +131,9 @@ class SpdSolver:
             correction = self._direct(As) if n <= DIRECT_MAX_UNKNOWNS else self._amg(As, rtol)
             y, res = refine(correction, bs, scaled_residual, size)
             if islands and res <= FAILED:
-                # an island's level rests on its storage alone: a tiny non-zero pivot can leave it
-                # wrong while the residual of the whole system looks small
+                # an island's level rests on its storage alone: a tiny non-zero pivot leaves it
+                # wrong while the residual of the whole system looks small (Ca* 1e-9: 12 Q dt off)
+                y = settle_island_levels(y, scaled_residual(y), scale, storage, floating)
                 res = max(res, island_defect(scaled_residual(y), scale, floating, b_terms))
         except RuntimeError:  # SuperLU without pivoting met a zero pivot
             y, res = None, np.inf
@@ -138,7 +141,8 @@ class SpdSolver:
             try:
                 deflated = floating_solve(A, storage, floating)
                 y, _ = refine(lambda r: deflated(r / scale) / scale, bs, scaled_residual, size)
-                res = floating_residual(As, y, scaled_residual(y), scale, size, floating, b_terms)
+                level = np.zeros(n) if offset is None else np.abs(offset) / scale
+                res = floating_residual(As, y, level, scaled_residual(y), scale, size, floating, b_terms)
             except RuntimeError:
                 y, res = None, np.inf
         if (not np.isfinite(res) or res > FAILED) and n <= DIRECT_MAX_UNKNOWNS:
@@ -187,6 +191,21 @@ class SpdSolver:
         return lambda r: spla.cg(As, r, rtol=rtol, maxiter=500, M=preconditioner)[0]
 
 
+def settle_island_levels(y, r, scale, storage, floating):
+    """``y`` (scaled unknowns, residual ``r``) with each shut-in island shifted to the level its
+    own mass balance fixes: summed over an island the pipe terms cancel, so its rows' residuals
+    add up to sum b - storage . x, and the uniform shift sum(r) / sum(storage) zeroes that sum.
+    The shift moves no pipe flux; each row changes only by its storage times the shift."""
+    member = floating >= 0
+    label = floating[member]
+    defect = np.bincount(label, np.asarray(r, float)[member] / scale[member])
+    total = np.bincount(label, storage[member], len(defect))
+    shift = np.divide(defect, total, out=np.zeros_like(defect), where=total > 0.0)
+    y = y.copy()
+    y[member] += shift[label] / scale[member]
+    return y
+
+
 def island_defect(r, scale, floating, b_size) -> float:
     """Largest mass defect of a shut-in island: |sum of its rows' residuals| (the pipe terms
     cancel, leaving sum b - storage . x) over the sum of its rows' term sizes ``b_size``.
@@ -198,17 +217,20 @@ def island_defect(r, scale, floating, b_size) -> float:
     return float(np.max(defect / np.maximum(terms, np.finfo(float).tiny), initial=0.0))
 
 
-def floating_residual(As, y, r, scale, size, floating, b_size) -> float:
+def floating_residual(As, y, level, r, scale, size, floating, b_size) -> float:
     """Relative residual of a solution with shut-in islands (scaled system As y = b S, residual
-    r): the rows that reach a Dirichlet value against ``size`` as usual, and each island's mass
-    balance (:func:`island_defect`). Inside an island a row residual at the round-off of the row's
-    terms, |A| |x|, is accepted: the island sits at a level sum(b)/sum(storage) so far above its
-    internal pressure differences (~b/G) that double precision resolves them only to
-    ~eps level/difference, and no solve can do better. A larger one fails the solution (inf)."""
+    r, y an increment of the scaled values ``level``, e.g. p^n): the rows that reach a Dirichlet
+    value against ``size`` as usual, and each island's mass balance (:func:`island_defect`).
+    Inside an island a row residual at the round-off of the row's terms, |A| (|level| + |y|), is
+    accepted: the island sits at a pressure so far above its internal pressure differences (~b/G)
+    that double precision resolves them only to ~eps pressure/difference, and no solve can do
+    better. The pressure counts whole, not only its increment: an island at rest (y ~ 0) at 43 Pa
+    holds its differences only to ~eps 43 Pa once p^n + y is stored (Ca* = 1e-9, decisions #78).
+    A larger residual fails the solution (inf)."""
     r = np.asarray(r, float)
     member = floating >= 0
     grounded = np.linalg.norm(r[~member]) / size
-    floor = ROUND_OFF * (abs(As) @ np.abs(y))[member]
+    floor = ROUND_OFF * (abs(As) @ (np.abs(level) + np.abs(y)))[member]
     interior_at_round_off = bool(np.all(np.abs(r[member]) <= floor))
     if not interior_at_round_off:
         return np.inf

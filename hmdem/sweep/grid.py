@@ -24,12 +24,12 @@ class Axis:
 
 
 # Where the linear model's runs reach breakthrough, measured with the sd case at the grid's
-# corners (decisions #77): below Ca* = 1e-8 the pressure solve fails (residual ~1e-3 at 1e-9
-# and 1e-10); up to 1e4 the runs finish, beyond the constant bulk modulus's range already
-# (p/K 2.8 at M = 1e-5). Lenormand's diagram spans about the same range (log Ca -10..0 in his
-# micromodel, log Ca* -7.4..2.6).
+# corners (decisions #77, #78): down to Ca* = 1e-10 at every M of [-6, 6] with the mass balanced
+# (decisions #78); up to 1e4 the runs finish, beyond the constant bulk modulus's range already
+# (p/K 2.8 at M = 1e-5). Lenormand's diagram lies inside (log Ca -10..0 in his micromodel,
+# log Ca* -7.4..2.6).
 LOG_M_RANGE = (-6.0, 6.0)
-LOG_CA_STAR_RANGE = (-8.0, 4.0)
+LOG_CA_STAR_RANGE = (-10.0, 4.0)
 
 
 def parse_axis(text: str, bounds: tuple[float, float] = (-math.inf, math.inf)) -> Axis:
