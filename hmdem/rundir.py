@@ -123,19 +123,45 @@ def atomic_run_directory(final: Path):
 
 
 @contextmanager
-def replaced_atomically(path: Path):
+def replaced_atomically(path: Path, keep_existing: bool = False):
     """Yield a temporary sibling of ``path`` (same suffix) to write; rename it onto ``path`` when
-    the block completes: a reader (or a kill) sees the old content or the new, never a part."""
+    the block completes: a reader (or a kill) sees the old content or the new, never a part.
+
+    ``keep_existing``: a ``path`` that another process made while the block ran is not replaced;
+    the new file is kept as ``<stem>.unsaved-XXXX<suffix>`` and :class:`RunDirectoryTaken` names
+    it (a hard link publishes the file only where nothing stands)."""
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
     os.close(fd)
     try:
         os.chmod(tmp, umask_mode(0o666))
         yield Path(tmp)
-        os.replace(tmp, path)
+        if keep_existing:
+            publish_new(Path(tmp), path)
+        else:
+            os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def publish_new(tmp: Path, path: Path) -> None:
+    """Rename ``tmp`` to ``path`` unless ``path`` exists by then; else keep it beside ``path``
+    and raise :class:`RunDirectoryTaken`."""
+    try:
+        os.link(tmp, path)  # fails where anything stands at path: no window between check and write
+        tmp.unlink()
+        return
+    except FileExistsError:
+        pass
+    except OSError:  # a file system without hard links: check, then rename
+        if not path.exists():
+            os.replace(tmp, path)
+            return
+    kept = path.with_name(f"{path.stem}{UNSAVED}{tmp.stem.rsplit('.', 1)[-1]}{path.suffix}")
+    os.replace(tmp, kept)
+    raise RunDirectoryTaken(f"--out: {str(path)!r} was created by another process during the run; "
+                            f"this run's result is in {str(kept)!r}")
 
 
 def write_text_atomic(path: Path, text: str) -> None:

@@ -205,6 +205,26 @@ def test_an_out_taken_during_the_run_keeps_the_results_beside_it(tmp_path, capsy
     assert len(lines) == 1 and lines[0].startswith("prog: --out:") and "second.unsaved-" in lines[0]
 
 
+def test_a_packing_file_made_during_the_run_is_kept(tmp_path):
+    # a packing takes minutes: --out is checked new at the start, and a file another process
+    # writes there meanwhile is neither replaced nor lost; the new packing is kept beside it
+    from hmdem.rundir import RunDirectoryTaken, replaced_atomically
+
+    out = tmp_path / "packing.npz"
+    with pytest.raises(RunDirectoryTaken, match="unsaved") as taken:
+        with replaced_atomically(out, keep_existing=True) as tmp:
+            tmp.write_text("ours")
+            out.write_text("theirs")
+    kept = [p for p in tmp_path.iterdir() if p.name.startswith("packing.unsaved-")]
+    assert len(kept) == 1 and kept[0].suffix == ".npz" and str(kept[0]) in str(taken.value)
+    assert kept[0].read_text() == "ours" and out.read_text() == "theirs"
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["packing.npz", kept[0].name])  # no temporary
+    fresh = tmp_path / "fresh.npz"
+    with replaced_atomically(fresh, keep_existing=True) as tmp:
+        tmp.write_text("new")
+    assert fresh.read_text() == "new" and not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
 def test_run_directories_and_replaced_files_follow_the_umask(tmp_path):
     # mkdtemp / mkstemp would leave them private (0o700 / 0o600): a group could not read a run
     import stat

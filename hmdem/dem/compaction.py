@@ -180,7 +180,8 @@ def write_packing(args) -> int:
         if bar is not None:
             bar.close()
     args.out.absolute().parent.mkdir(parents=True, exist_ok=True)
-    with replaced_atomically(args.out) as tmp:  # a kill while writing leaves no part of a file
+    # a kill while writing leaves no part of a file; a file made at --out meanwhile is kept
+    with replaced_atomically(args.out, keep_existing=not args.overwrite) as tmp:
         pk.save(tmp)
     print(f"{len(pk.radii)} discs in {pk.box[0] * 1e3:.4f} x {pk.box[1] * 1e3:.4f} mm, porosity {pk.porosity:.4f}, "
           f"{int(pk.fixed.sum())} grains touching a wall (stored as fixed; the runs fix the whole hull), "

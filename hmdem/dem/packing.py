@@ -147,7 +147,8 @@ def write_packing(args) -> int:
     mean_radius = 1.0e-3 if args.mean_radius is None else args.mean_radius  # sets the walls' stiffness only
     pk = generate_packing(args.n or 1188, (args.size, args.size), mean_radius, args.spread, args.porosity, args.seed)
     args.out.absolute().parent.mkdir(parents=True, exist_ok=True)
-    with replaced_atomically(args.out) as tmp:  # a kill while writing leaves no part of a file
+    # a kill while writing leaves no part of a file; a file made at --out meanwhile is kept
+    with replaced_atomically(args.out, keep_existing=not args.overwrite) as tmp:
         pk.save(tmp)
     print(f"{len(pk.radii)} discs, mean radius {pk.radii.mean() * 1e3:.4g} mm, porosity {pk.porosity:.4f}, "
           f"{len(pk.contacts)} contacts, {time.perf_counter() - t0:.1f} s -> {args.out}")
