@@ -244,7 +244,7 @@ def sweep_corner(log_m: float, max_steps: int, log_ca: float = -8.0):
 
 @pytest.mark.parametrize("log_m, log_ca, steps", [(-3.25, -8, 250), (-1.5, -8, 100), (2.0, -8, 900), (-5, -9, 400)])
 def test_slowest_sweep_corners_step_through_shut_in_islands(log_m, log_ca, steps):
-    # Corners of the issue-4 sweep at Ca* = 1e-8: nominal steps of 1e4-1e8 s leave an invaded
+    # Corners of the issue-4 sweep at Ca* = 1e-8 (and 1e-9): nominal steps of 1e4-1e8 s leave an invaded
     # island shut in by capillarity with storage V/(K dt) below the double-precision resolution
     # of its conductances. Before the floating-island solve, M = 10^-3.25 failed unpivoted at
     # step ~204, M = 10^-1.5 failed even pivoted before step 100, and M = 100 hit an exactly
@@ -289,6 +289,25 @@ def test_shut_in_island_rises_by_the_inflow_over_its_storage():
     assert np.allclose(x, [0.0, 0.0, 1.0, 1.0, 1.0], rtol=1e-14, atol=1e-14)
 
 
+def test_an_island_at_rest_is_held_to_the_round_off_of_its_pressure():
+    # decisions #78, step 336 of Ca* 1e-9, M 1e-5: a 3-domain island at rest (increment ~1e-13
+    # Pa) at p^n = 43 Pa, pipe conductances ~5e-7, rows left at 1e-30 by the refinement. Against
+    # round-off times |A| |increment| (~1e-33) that was a failure; stored as p^n + increment the
+    # pressures resolve differences only to ~eps 43 Pa, so 1e-30 is far inside the round-off.
+    import hmdem.flow.sparse as sparse
+
+    g = 5e-7
+    A = sp.csr_matrix(np.array([[2 * g, -g, -g], [-g, 2 * g, -g], [-g, -g, 2 * g]]) + 1e-17 * np.eye(3))
+    y = np.array([1e-13, -1e-13, 0.0])
+    r = np.array([1e-30, -2e-30, 1e-30])  # sums to 0: the island's mass balance holds
+    floating, scale, b_terms = np.zeros(3, int), np.ones(3), np.full(3, 1e-19)
+    at_rest = sparse.floating_residual(A, y, np.zeros(3), r, scale, 1.0, floating, b_terms)
+    at_43_pa = sparse.floating_residual(A, y, np.full(3, 43.0), r, scale, 1.0, floating, b_terms)
+    assert at_rest == np.inf and at_43_pa < 1e-20
+    r_wrong = np.array([1e-15, -2e-15, 1e-15])  # ~1e3 x the floor 64 eps 43 Pa |A|: not round-off
+    assert sparse.floating_residual(A, y, np.full(3, 43.0), r_wrong, scale, 1.0, floating, b_terms) == np.inf
+
+
 def test_floating_components_are_the_islands_cut_off_from_every_dirichlet_domain():
     # domains 0..4 in a chain, domain 4 Dirichlet; shutting pipe 1-2 leaves {0, 1} floating
     system = PressureSystem(np.array([0, 1, 2, 3]), np.array([1, 2, 3, 4]), np.array([0, 1, 2, 3, -1]))
@@ -301,8 +320,9 @@ def test_an_island_level_from_a_tiny_nonzero_pivot_is_caught():
     # Review finding: a 10-node chain reaching a Dirichlet value and a 10-node shut-in island
     # (storage 1e-17 of its conductances, inflow 1e-9 against 1 in the chain). Unpivoted LU meets a
     # tiny non-zero pivot instead of a zero one and returned the island at 4.7e6 instead of
-    # sum(b)/sum(storage) = 1e7 with a small residual for the whole system; the island's own mass
-    # balance now rejects that, and the floating-island solve gives the exact level.
+    # sum(b)/sum(storage) = 1e7 with a small residual for the whole system. The island's own mass
+    # balance then rejected it for the floating-island solve; since decisions #78 the LU answer
+    # is itself shifted to the level the island's summed rows fix.
     import hmdem.flow.sparse as sparse
 
     rng = np.random.default_rng(1)

@@ -127,14 +127,20 @@ class SpdSolver:
         size = bnorm if b_size is None else max(bnorm, np.linalg.norm(b_size * scale))
         islands = floating is not None and bool(np.any(floating >= 0))
         b_terms = np.abs(b) if b_size is None else b_size
+
+        def settled(y, res):
+            """An LU answer with each island at the level its mass balance fixes: a tiny non-zero
+            pivot leaves that level wrong while the residual of the whole system looks small
+            (Ca* 1e-9: 12 Q dt off, decisions #78); the island's balance is then checked."""
+            if not islands or res > FAILED:
+                return y, res
+            y = settle_island_levels(y, scaled_residual(y), scale, storage, floating)
+            r = scaled_residual(y)
+            return y, max(float(np.linalg.norm(r) / size), island_defect(r, scale, floating, b_terms))
+
         try:
             correction = self._direct(As) if n <= DIRECT_MAX_UNKNOWNS else self._amg(As, rtol)
-            y, res = refine(correction, bs, scaled_residual, size)
-            if islands and res <= FAILED:
-                # an island's level rests on its storage alone: a tiny non-zero pivot leaves it
-                # wrong while the residual of the whole system looks small (Ca* 1e-9: 12 Q dt off)
-                y = settle_island_levels(y, scaled_residual(y), scale, storage, floating)
-                res = max(res, island_defect(scaled_residual(y), scale, floating, b_terms))
+            y, res = settled(*refine(correction, bs, scaled_residual, size))
         except RuntimeError:  # SuperLU without pivoting met a zero pivot
             y, res = None, np.inf
         if (not np.isfinite(res) or res > FAILED) and islands:
@@ -150,7 +156,7 @@ class SpdSolver:
             # a nearly inviscid, stiff fluid is tied to the rest only by its storage V/(K dt)
             # (~1e-15 of its conductances at Ca* = 1e-8, M = 1e-3): partial pivoting
             try:
-                y, res = refine(self._pivoted(As), bs, scaled_residual, size)
+                y, res = settled(*refine(self._pivoted(As), bs, scaled_residual, size))
             except RuntimeError as exc:  # SuperLU: "Factor is exactly singular"
                 raise LinearSolveError(f"pressure solve: {exc} (n = {n})") from None
         if not np.isfinite(res) or res > FAILED:

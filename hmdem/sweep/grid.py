@@ -24,9 +24,9 @@ class Axis:
 
 
 # Where the linear model's runs reach breakthrough, measured with the sd case at the grid's
-# corners (decisions #77, #78): down to Ca* = 1e-10 at every M of [-6, 6] with the mass balanced
-# (decisions #78); up to 1e4 the runs finish, beyond the constant bulk modulus's range already
-# (p/K 2.8 at M = 1e-5). Lenormand's diagram lies inside (log Ca -10..0 in his micromodel,
+# corners (decisions #77, #78): down to Ca* = 1e-10 at the seven M measured across [-6, 6], the
+# run's mass balance within 1.5e-8 (decisions #78); up to 1e4 the runs finish, beyond the
+# constant bulk modulus's range already (p/K 2.8 at M = 1e-5). Lenormand's diagram lies inside (log Ca -10..0 in his micromodel,
 # log Ca* -7.4..2.6).
 LOG_M_RANGE = (-6.0, 6.0)
 LOG_CA_STAR_RANGE = (-10.0, 4.0)
