@@ -20,9 +20,9 @@ FAILED = 1e-5
 ROUND_OFF = 64 * np.finfo(float).eps  # a row residual this small against its terms is round-off
 
 
-def refine(correction, b: np.ndarray, residual, size: float) -> tuple[np.ndarray, float]:
+def refine(correction, b: np.ndarray, residual, size: float) -> tuple[np.ndarray, float, np.ndarray]:
     """x from ``correction(b)`` refined in extended precision against ``residual(x)``; returns
-    x and its residual relative to ``size``."""
+    x, its residual relative to ``size``, and the residual itself."""
     y = correction(b).astype(np.longdouble)
     r = residual(y)
     for _ in range(MAX_REFINEMENTS):
@@ -35,7 +35,7 @@ def refine(correction, b: np.ndarray, residual, size: float) -> tuple[np.ndarray
             y, r = y + step, r_next
         if np.linalg.norm(r_next) >= 0.5 * rnorm:  # at the round-off floor
             break
-    return y, float(np.linalg.norm(r) / size)
+    return y, float(np.linalg.norm(r) / size), r
 
 
 class LinearSolveError(RuntimeError):
@@ -128,14 +128,13 @@ class SpdSolver:
         islands = floating is not None and bool(np.any(floating >= 0))
         b_terms = np.abs(b) if b_size is None else b_size
 
-        def settled(y, res):
-            """An LU answer with each island at the level its mass balance fixes: a tiny non-zero
-            pivot leaves that level wrong while the residual of the whole system looks small
-            (Ca* 1e-9: 12 Q dt off, decisions #78); the island's balance is then checked."""
+        def settled(y, res, r):
+            """An LU answer (residual ``r``) with each island at the level its mass balance fixes:
+            a tiny non-zero pivot leaves that level wrong while the residual of the whole system
+            looks small (Ca* 1e-9: 12 Q dt off, decisions #78); the island's balance is then checked."""
             if not islands or res > FAILED:
                 return y, res
-            y = settle_island_levels(y, scaled_residual(y), scale, storage, floating)
-            r = scaled_residual(y)
+            y, r = settle_island_levels(y, r, scale, storage, floating)
             return y, max(float(np.linalg.norm(r) / size), island_defect(r, scale, floating, b_terms))
 
         try:
@@ -146,9 +145,9 @@ class SpdSolver:
         if (not np.isfinite(res) or res > FAILED) and islands:
             try:
                 deflated = floating_solve(A, storage, floating)
-                y, _ = refine(lambda r: deflated(r / scale) / scale, bs, scaled_residual, size)
+                y, _, r = refine(lambda r: deflated(r / scale) / scale, bs, scaled_residual, size)
                 level = np.zeros(n) if offset is None else np.abs(offset) / scale
-                res = floating_residual(As, y, level, scaled_residual(y), scale, size, floating, b_terms)
+                res = floating_residual(As, y, level, r, scale, size, floating, b_terms)
             except RuntimeError:
                 y, res = None, np.inf
         if (not np.isfinite(res) or res > FAILED) and n <= DIRECT_MAX_UNKNOWNS:
@@ -198,18 +197,20 @@ class SpdSolver:
 
 
 def settle_island_levels(y, r, scale, storage, floating):
-    """``y`` (scaled unknowns, residual ``r``) with each shut-in island shifted to the level its
-    own mass balance fixes: summed over an island the pipe terms cancel, so its rows' residuals
-    add up to sum b - storage . x, and the uniform shift sum(r) / sum(storage) zeroes that sum.
-    The shift moves no pipe flux; each row changes only by its storage times the shift."""
+    """``y`` (scaled unknowns, scaled residual ``r``) and its residual with each shut-in island
+    shifted to the level its own mass balance fixes: summed over an island the pipe terms
+    cancel, so its rows' residuals add up to sum b - storage . x, and the uniform shift
+    sum(r) / sum(storage) zeroes that sum. The shift moves no pipe flux, so each row's residual
+    changes by its storage times the shift exactly, with no new evaluation of the residual."""
     member = floating >= 0
     label = floating[member]
     defect = np.bincount(label, np.asarray(r, float)[member] / scale[member])
     total = np.bincount(label, storage[member], len(defect))
     shift = np.divide(defect, total, out=np.zeros_like(defect), where=total > 0.0)
-    y = y.copy()
+    y, r = y.copy(), r.copy()
     y[member] += shift[label] / scale[member]
-    return y
+    r[member] -= storage[member] * shift[label] * scale[member]
+    return y, r
 
 
 def island_defect(r, scale, floating, b_size) -> float:
