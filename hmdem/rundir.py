@@ -116,10 +116,15 @@ def atomic_run_directory(final: Path):
     except OSError:
         if not final.exists():  # not a directory or a file standing at ``final``: another failure
             raise
-        kept = final.with_name(f"{final.name}{UNSAVED}{tmp.name.rsplit('-', 1)[-1]}")
-        os.replace(tmp, kept)
-        raise RunDirectoryTaken(f"--out: {str(final)!r} was created by another process during the run; this "
-                                f"run's results are in {str(kept)!r}") from None
+        raise set_aside(tmp, final, final.with_name(f"{final.name}{UNSAVED}{tmp.name.rsplit('-', 1)[-1]}")) from None
+
+
+def set_aside(tmp: Path, final: Path, kept: Path) -> RunDirectoryTaken:
+    """Move a finished ``tmp`` to ``kept``, beside the ``final`` another process made meanwhile;
+    returns the error to raise, which names both."""
+    os.replace(tmp, kept)
+    return RunDirectoryTaken(f"--out: {str(final)!r} was created by another process during the run; this "
+                             f"run's results are in {str(kept)!r}")
 
 
 @contextmanager
@@ -158,10 +163,7 @@ def publish_new(tmp: Path, path: Path) -> None:
         if not path.exists():
             os.replace(tmp, path)
             return
-    kept = path.with_name(f"{path.stem}{UNSAVED}{tmp.stem.rsplit('.', 1)[-1]}{path.suffix}")
-    os.replace(tmp, kept)
-    raise RunDirectoryTaken(f"--out: {str(path)!r} was created by another process during the run; "
-                            f"this run's result is in {str(kept)!r}")
+    raise set_aside(tmp, path, path.with_name(f"{path.stem}{UNSAVED}{tmp.stem.rsplit('.', 1)[-1]}{path.suffix}"))
 
 
 def write_text_atomic(path: Path, text: str) -> None:

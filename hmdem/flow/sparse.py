@@ -146,7 +146,7 @@ class SpdSolver:
             try:
                 deflated = floating_solve(A, storage, floating)
                 y, _, r = refine(lambda r: deflated(r / scale) / scale, bs, scaled_residual, size)
-                level = np.zeros(n) if offset is None else np.abs(offset) / scale
+                level = np.zeros(n) if offset is None else offset / scale
                 res = floating_residual(As, y, level, r, scale, size, floating, b_terms)
             except RuntimeError:
                 y, res = None, np.inf
