@@ -185,8 +185,12 @@ class PressureSystem:
                                                              floating=self.floating_components(g_open),
                                                              offset=self.node_values(p_old)))
             p = p_old + increment
-            dp = p[self.pipe_a] - p[self.pipe_b]
-            margin = np.where(front, orient * dp + entry_pressure, 0.0)
+            # p_u - p_d + p_c from p^n + increment in extended precision, as the residual has it:
+            # rounded to doubles first (~eps |p|), then multiplied by the huge conductances of a
+            # nearly inviscid fluid, fluxes ended up to 1e-7 Q off the solved balance (decisions #80)
+            p_exact = p_old.astype(np.longdouble) + increment
+            drive = p_exact[self.pipe_a] - p_exact[self.pipe_b] + orient * entry_pressure
+            margin = np.where(front, (orient * drive).astype(float), 0.0)
             if hold_blocked:
                 break
             new_blocked = front & (margin <= 0.0)
@@ -198,7 +202,7 @@ class PressureSystem:
                 new_blocked = blocked | new_blocked
             seen.add(key)
             blocked = new_blocked
-        flux = g_open * (dp + orient * entry_pressure)
+        flux = (g_open * drive).astype(float)
         return PressureSolution(p, flux, used, margin, passes, increment)
 
     def floating_components(self, g_open: np.ndarray) -> np.ndarray:
