@@ -25,8 +25,8 @@ import time
 from pathlib import Path
 
 from . import __version__
-from .cli import (OneLineParser, add_contact_arguments, dispatch, grain_count, interrupted_status, new_run_directory,
-                  non_negative_int, non_negative_number, number_in, positive_number, read_packing)
+from .cli import (OneLineParser, add_contact_arguments, contact_gap_fraction, dispatch, grain_count, interrupted_status,
+                  new_run_directory, non_negative_int, number_in, positive_number, read_compacted_packing)
 from .network.contact_graph import NEAR_CONTACT_GAP
 from .rundir import atomic_run_directory
 from .rundir import write_json as write_strict_json
@@ -83,7 +83,7 @@ def build_parser() -> argparse.ArgumentParser:
     da.add_argument("--n", type=grain_count, default=1395, help="discs of the compacted samples (default 1395)")
     da.add_argument("--seed", type=non_negative_int, default=0, help="packing seed (default 0)")
     add_contact_arguments(da, friction=False)  # the sweep's compactions; a stored packing keeps its own k_n
-    da.add_argument("--contact-gap", type=non_negative_number, default=NEAR_CONTACT_GAP,
+    da.add_argument("--contact-gap", type=contact_gap_fraction, default=NEAR_CONTACT_GAP,
                     help="grain pairs closer than this fraction of the smaller radius are pipes (default %(default)g, "
                          "the coupled runs'; 0.38 gives the paper's network counts: decisions #73)")
     da.add_argument("--out", type=Path, help="run directory to create (default runs/darcy-<time>)")
@@ -272,7 +272,7 @@ def run_darcy_command(args, argv) -> int:
     from .dem.runs import permeability_sweep, stored_permeability
 
     path = args.packing or Path(str(default_huang_packing_path()))
-    packing = read_packing(path)
+    packing = read_compacted_packing(path)
     out = new_run_directory(args.out, args.command)
     t0 = time.perf_counter()
     law = ApertureLaw()

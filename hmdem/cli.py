@@ -57,6 +57,8 @@ def number_in(allowed: str, accept):
 
 positive_number = number_in("a finite number > 0", lambda v: v > 0)
 non_negative_number = number_in("a finite number >= 0", lambda v: v >= 0)
+# a near-contact gap as a fraction of the smaller radius: beyond one radius a pair is no throat
+contact_gap_fraction = number_in("a fraction of the smaller radius in [0, 1]", lambda v: 0 <= v <= 1)
 local_damping = number_in("a number in [0, 1) (YADE's local damping)", lambda v: 0 <= v < 1)
 
 
@@ -168,6 +170,8 @@ def new_run_directory(out: Path | None, name: str) -> Path:
     """``--out`` or ``runs/<name>-<time>-<pid>``; refuses an existing directory (runs never
     overwrite) and a path through a file, before any work is done. The process id keeps two
     runs started in the same second (a shell loop, a batch array) from taking the same name."""
+    if out is not None and Path(out) == Path("."):  # also --out '' (an empty path is '.')
+        raise InputError(f"--out: must name a new run directory, got {str(out)!r}")
     out = out or Path("runs") / f"{name}-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}"
     if exists(out):
         raise InputError(f"--out: {str(out)!r} already exists; choose a new run directory")
@@ -224,12 +228,27 @@ def read_packing(path: Path):
     unreadable file is an :class:`InputError`."""
     from .network.packing import DiscPacking
 
+    if Path(path).is_dir():
+        raise InputError(f"--packing: {str(path)!r} is a directory; give a packing .npz file")
     if not Path(path).is_file():
         raise InputError(f"--packing: no such file {str(path)!r}")
     try:
         return DiscPacking.load(path)
-    except Exception as exc:  # not an npz, or an npz without a packing's arrays
+    except KeyError:  # an npz of something else, e.g. a run directory's state.npz
+        raise InputError(f"--packing: {str(path)!r} is not a packing (one holds centres, radii, contacts, box, "
+                         "seed); write one with python -m hmdem.dem.packing or hmdem.dem.compaction") from None
+    except Exception as exc:  # not an npz at all
         raise InputError(f"--packing: cannot read a packing from {str(path)!r} ({type(exc).__name__})") from None
+
+
+def read_compacted_packing(path: Path):
+    """:func:`read_packing`, refusing a packing no servo compacted: Eqs. 13-14 open the Huang
+    sample's apertures from the contact forces a compacted sample carries (its confining stress)."""
+    packing = read_packing(path)
+    if not packing.confining_stress > 0:
+        raise InputError(f"--packing: {str(path)!r} records no confining stress, so it is not a "
+                         "compacted sample; make one with python -m hmdem.dem.compaction")
+    return packing
 
 
 def check_aperture_fits_grains(mean_aperture: float, radii, aperture_given: bool, can_set: bool = True) -> None:

@@ -15,9 +15,9 @@ from pathlib import Path
 
 from . import __version__
 from .cases import CASES
-from .cli import (InputError, OneLineParser, add_contact_arguments, check_aperture_fits_grains, dispatch,
-                  interrupted_status, local_damping, new_run_directory, non_negative_int, non_negative_number,
-                  positive_int, positive_number, read_packing)
+from .cli import (InputError, OneLineParser, add_contact_arguments, check_aperture_fits_grains, contact_gap_fraction,
+                  dispatch, interrupted_status, local_damping, new_run_directory, non_negative_int, positive_int,
+                  positive_number, read_compacted_packing, read_packing)
 from .flow.darcy_transient import STEADY_T_D, read_darcy_test
 from .flow.fluids import WEAK_COMPRESSION
 from .network.contact_graph import NEAR_CONTACT_GAP
@@ -75,7 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
     rad.add_argument("--fixed-port", action="store_true",
                      help="hold the grains around the injection domain in place, a rigid injection tube whose "
                           "pipes keep their apertures (default: only the boundary grains are fixed; decisions #68)")
-    rad.add_argument("--contact-gap", type=non_negative_number,
+    rad.add_argument("--contact-gap", type=contact_gap_fraction,
                      help="grain pairs closer than this fraction of the smaller radius are pipes, starting "
                           f"detached with the Eq. 14 aperture (default {NEAR_CONTACT_GAP:g}, as for the Lenormand "
                           "packing; 0.38 gives about the paper's 3,490 pipes and 141 outflow domains: decisions #73)")
@@ -129,7 +129,7 @@ def add_run_options(sub: argparse.ArgumentParser, default_packing: str) -> None:
     sub.add_argument("--t-max", type=positive_number, help="stop at this simulated time [s]")
     sub.add_argument("--max-steps", type=positive_int, help="stop after this many steps")
     sub.add_argument("--packing", type=Path, help=f"packing .npz (default: {default_packing})")
-    sub.add_argument("--out", type=Path, help="run directory to create (default runs/<case>-<time>)")
+    sub.add_argument("--out", type=Path, help="run directory to create (default runs/<case>-<time>-<pid>)")
     sub.add_argument("--quiet", action="store_true", help="no progress bar")
     sub.add_argument("--snapshots", type=positive_int,
                      help="keep N ParaView snapshots as the front advances (each 1/N of its way to the outflow; "
@@ -298,11 +298,7 @@ def run_radial(args) -> int:
     from .coupling.radial import RADIAL_CASES, build_radial_scenario
     from .dem.runs import start_grains
 
-    packing = None if args.packing is None else read_packing(args.packing)
-    if packing is not None and not packing.confining_stress > 0:
-        # Eqs. 13-14 open the apertures from the contact forces a servo-compacted sample carries
-        raise InputError(f"--packing: {str(args.packing)!r} records no confining stress, so it is not a "
-                         "compacted sample; make one with python -m hmdem.dem.compaction")
+    packing = None if args.packing is None else read_compacted_packing(args.packing)
     if args.one_way_volume is not None and not args.one_way:
         raise InputError("--one-way-volume: only with --one-way (the P-V iteration always puts dV in)")
     out = new_run_directory(args.out, args.case)

@@ -124,7 +124,7 @@ def build_parser() -> OneLineParser:
             p.add_argument("--viscosity", type=positive_number, default=2.6,
                            help="dynamic viscosity [Pa s] (default 2.6: the flow settles in ~0.05 s)")
     for p in sub.choices.values():
-        p.add_argument("--out", type=Path, help="run directory (must not exist; default runs/<case>-<time>)")
+        p.add_argument("--out", type=Path, help="run directory (must not exist; default runs/<case>-<time>-<pid>)")
         p.add_argument("--quiet", action="store_true", help="no progress bar")
     # listed here so that the usage names it; main() hands `lga ...` to its own parser first
     sub.add_parser("lga", help="FHP-II lattice-gas fracture studies (seed 003): python -m sph_bridge lga -h")

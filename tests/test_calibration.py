@@ -3,6 +3,7 @@ test and the ``python -m hmdem.calibrate`` command line."""
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -162,6 +163,10 @@ def test_elastic_constants_use_compression_positive_strains():
     (["darcy", "--stresses", "1e5,,2e5"], "--stresses"),
     (["darcy", "--stresses", "abc"], "--stresses"),
     (["darcy", "--packing", "missing.npz"], "--packing"),
+    # a new-user pass: an uncompacted packing ran for minutes to k = 7e-18 (no contact forces)
+    (["darcy", "--packing", str(Path(__file__).resolve().parent.parent / "hmdem" / "data" / "lenormand_packing.npz")],
+     "--packing"),
+    (["darcy", "--contact-gap", "50"], "--contact-gap"),
 ])
 def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, monkeypatch, capsys, args, flag):
     monkeypatch.chdir(tmp_path)

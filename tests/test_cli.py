@@ -57,6 +57,9 @@ DATA = Path(__file__).resolve().parent.parent / "hmdem" / "data"
     (["radial", "--packing", str(DATA / "lenormand_packing.npz")], "--packing"),
     (["linear", "--case", "chen", "--packing", str(DATA / "lenormand_packing.npz")], "--packing"),
     (["linear", "--mean-aperture", "0.5"], "--mean-aperture"),
+    # a new-user pass: a directory; a near-contact gap of 50 radii ran
+    (["radial", "--packing", str(DATA)], "--packing"),
+    (["radial", "--contact-gap", "1.01"], "--contact-gap"),
 ])
 def test_bad_input_one_line_exit_2_nothing_written(tmp_path, args, name):
     out = tmp_path / "run"
@@ -110,6 +113,20 @@ def test_default_run_directories_of_concurrent_runs_differ(tmp_path, monkeypatch
         monkeypatch.setattr(cli.os, "getpid", lambda pid=pid: pid)
         names.append(cli.new_run_directory(None, "darcy"))
     assert names == [Path("runs/darcy-20261129-021659-101"), Path("runs/darcy-20261129-021659-102")]
+
+
+def test_a_state_file_is_not_taken_for_a_packing(tmp_path, capsys):
+    np.savez(tmp_path / "state.npz", pressure=np.zeros(3), saturation=np.zeros(3))
+    assert main(["radial", "--packing", str(tmp_path / "state.npz"), "--out", str(tmp_path / "run")]) == 2
+    assert "is not a packing (one holds centres, radii" in capsys.readouterr().err
+    assert [p.name for p in tmp_path.iterdir()] == ["state.npz"]
+
+
+def test_an_empty_out_is_refused(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)  # '' is '.', which exists: the message says what --out wants
+    assert main(["linear", "--out", ""]) == 2
+    assert capsys.readouterr().err.strip() == "python -m hmdem.hele_shaw: --out: must name a new run directory, got '.'"
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_existing_out_is_refused(tmp_path, capsys):

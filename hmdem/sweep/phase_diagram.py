@@ -61,6 +61,7 @@ def plot_phase_diagram(path: Path, rows: list[dict], crossover: float | None = N
     from ..plots import plt  # Agg backend, Debian's Axes3D warning silenced
 
     points = point_summary(rows)
+    flagged = [p[4] for p in points.values() if p[4] > WEAK_COMPRESSION]  # peak p/K beyond the constant-K range
     stars = [(math.log10(m), math.log10(c), regime) for m, c, regime in LENORMAND_EXPERIMENTS]
     fig, ax = plt.subplots(figsize=(8.5, 6.5))
     if points:
@@ -105,8 +106,9 @@ def plot_phase_diagram(path: Path, rows: list[dict], crossover: float | None = N
         right.set_ylabel(f"log$_{{10}}$ Ca = Ca* ā / L  (this sample: Ca* / {1 / 10 ** shift:.1f})")
     handles = [Patch(color=c, label=name) for name, c in REGIME_COLOURS.items()]
     handles.append(Patch(facecolor=OTHER_COLOUR, hatch="//", label="failed / other"))
-    handles.append(plt.Line2D([], [], ls="", label=f"'p/K 0.64 !': peak pressure / bulk modulus beyond "
-                              f"{WEAK_COMPRESSION}, the constant-K range"))
+    if flagged:
+        handles.append(plt.Line2D([], [], ls="", label=f"'p/K {max(flagged):.2f} !': peak pressure / bulk modulus "
+                                  f"beyond {WEAK_COMPRESSION}, the constant-K range"))
     handles.append(plt.Line2D([], [], marker="*", ls="", ms=12, color="grey", mec="black",
                               label=f"Lenormand et al. (1988) experiments at Ca* = {LENORMAND_L_OVER_A:.1f} Ca "
                                     "(their L / ā, seed 004 §4.1)"))

@@ -107,7 +107,7 @@ def build_parser() -> OneLineParser:
             p.add_argument("--workers", type=int_at_least(1), default=default_workers(),
                            help="channels run side by side in worker processes, one core each (default: the "
                                 "machine's %(default)s cores; the numbers do not depend on it)")
-        p.add_argument("--out", type=Path, help="run directory (must not exist; default runs/lga-<case>-<time>)")
+        p.add_argument("--out", type=Path, help="run directory (must not exist; default runs/lga-<case>-<time>-<pid>)")
         p.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
 
