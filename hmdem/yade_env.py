@@ -9,6 +9,7 @@ Nothing outside :mod:`hmdem.dem` should call it.
 
 from __future__ import annotations
 
+import contextlib
 import glob
 import importlib
 import os
@@ -68,7 +69,10 @@ def import_yade(threads: int | None = None):
             sys.path.insert(0, path)
         sys.modules.pop("yade", None)  # a failed attempt may have left Debian's broken namespace
         try:
-            yade = importlib.import_module("yade")
+            # YADE prints "Using python version: ..." on import: to stderr, so that stdout keeps
+            # a command's own output (--quiet runs print just their result line)
+            with contextlib.redirect_stdout(sys.stderr):
+                yade = importlib.import_module("yade")
         except ImportError:
             continue
         if hasattr(yade, "O"):

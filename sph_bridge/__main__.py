@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hmdem import __version__
 from hmdem.cli import (InputError, OneLineParser, dispatch, int_at_least, new_run_directory, non_negative_number,
                        number_in, open_bar, positive_number)
 from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_toml
@@ -67,6 +68,7 @@ angle = number_in("a contact angle in (0, 180) degrees", lambda v: 0 < v < 180)
 def build_parser() -> OneLineParser:
     parser = _Parser(prog=PROG, description="PF-SPH validation cases (seed 000); 'python -m sph_bridge lga -h' for "
                                             "the lattice-gas fracture studies (seed 003)")
+    parser.add_argument("--version", action="version", version=__version__)
     sub = parser.add_subparsers(dest="command", parser_class=_Parser)
     text = "sessile drop (or --ridge) relaxed on a wall: height, width and contact angle against theory"
     p = sub.add_parser("droplet", help=text, description=text)

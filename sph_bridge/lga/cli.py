@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hmdem import __version__
 from hmdem.cli import InputError, OneLineParser, dispatch, int_at_least, new_run_directory, number_in
 from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_toml
 
@@ -69,6 +70,7 @@ density = number_in("particles per node in (0, 7)", lambda v: 0 < v < 7)
 def build_parser() -> OneLineParser:
     parser = _Parser(prog=PROG, description="FHP-II lattice-gas flow in smooth and self-affine rough channels "
                                              "(seed 003)")
+    parser.add_argument("--version", action="version", version=__version__)
     sub = parser.add_subparsers(dest="command", parser_class=_Parser)
     texts = {"poiseuille": "smooth channel (or --mirror half channel): parabola and nu from the Q-dP slope",
              "rough": "one self-affine rough fracture: Q, both force estimators, hydraulic aperture",
