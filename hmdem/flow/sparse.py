@@ -18,6 +18,8 @@ REFINED = 1e-17  # stop refining at this residual relative to the terms of b
 # a failed solve, not round-off: near-singular held systems (Eq. 19) reach ~1e-7 unpivoted
 FAILED = 1e-5
 ROUND_OFF = 64 * np.finfo(float).eps  # a row residual this small against its terms is round-off
+# the rows' summed residual is formed in extended precision, and pipe fluxes cancel in it exactly
+MASS_ROUND_OFF = 64 * np.finfo(np.longdouble).eps
 
 
 def refine(correction, b: np.ndarray, residual, size: float, mass_defect=None) -> tuple[np.ndarray, float, np.ndarray]:
@@ -28,10 +30,11 @@ def refine(correction, b: np.ndarray, residual, size: float, mass_defect=None) -
     step's mass defect (digest U8). Pipe fluxes enter two rows with opposite signs, so their
     round-off cancels in that sum but not in the norm. With huge conductances (a nearly inviscid
     grounded fluid) the norm can sit at that floor while the sum is 1e-5 Q dt off (decisions #79);
-    a correction that lowers such a sum is then taken even if it does not lower the norm.
+    a correction that lowers such a sum is then taken even if it does not lower the norm, and
+    refinement stops once a correction lowers neither.
     """
     def unbalanced(r):
-        return mass_defect is not None and mass_defect(r) > ROUND_OFF
+        return mass_defect is not None and mass_defect(r) > MASS_ROUND_OFF
 
     y = correction(b).astype(np.longdouble)
     r = residual(y)
@@ -47,7 +50,7 @@ def refine(correction, b: np.ndarray, residual, size: float, mass_defect=None) -
         if next_norm < rnorm or rebalances:
             y, r = y + step, r_next
             lowest = min(lowest, next_norm)
-        if next_norm >= 0.5 * rnorm and not unbalanced(r):  # at the round-off floor
+        if next_norm >= 0.5 * rnorm and not rebalances:  # at the round-off floor of both
             break
     return y, float(np.linalg.norm(r) / size), r
 
