@@ -72,7 +72,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_contact_arguments(bi)
     bi.add_argument("--rate-check", action="store_true",
                     help="repeat the loading at half the strain rate on the same sample and report the change")
-    bi.add_argument("--out", type=Path, help="run directory to create (default runs/biaxial-<time>)")
+    bi.add_argument("--out", type=Path, help="run directory to create (default runs/biaxial-<time>-<pid>)")
     bi.add_argument("--quiet", action="store_true", help="no progress bar")
 
     da = sub.add_parser("darcy", help="network Darcy permeability vs confining stress (YADE)")
@@ -86,7 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
     da.add_argument("--contact-gap", type=contact_gap_fraction, default=NEAR_CONTACT_GAP,
                     help="grain pairs closer than this fraction of the smaller radius are pipes (default %(default)g, "
                          "the coupled runs'; 0.38 gives the paper's network counts: decisions #73)")
-    da.add_argument("--out", type=Path, help="run directory to create (default runs/darcy-<time>)")
+    da.add_argument("--out", type=Path, help="run directory to create (default runs/darcy-<time>-<pid>)")
     da.add_argument("--quiet", action="store_true", help="no progress lines")
     return parser
 

@@ -33,20 +33,21 @@ def refine(correction, b: np.ndarray, residual, size: float, mass_defect=None) -
     a correction that lowers such a sum is then taken even if it does not lower the norm, and
     refinement stops once a correction lowers neither.
     """
-    def unbalanced(r):
-        return mass_defect is not None and mass_defect(r) > MASS_ROUND_OFF
+    def defect(r):
+        return 0.0 if mass_defect is None else mass_defect(r)
 
     y = correction(b).astype(np.longdouble)
     r = residual(y)
     lowest = np.linalg.norm(r)
     for _ in range(MAX_REFINEMENTS):
-        rnorm = np.linalg.norm(r)
-        if rnorm <= REFINED * size and not unbalanced(r):
+        rnorm, off = np.linalg.norm(r), defect(r)
+        unbalanced = off > MASS_ROUND_OFF
+        if rnorm <= REFINED * size and not unbalanced:
             break
         step = correction(r.astype(float))
         r_next = residual(y + step)
         next_norm = np.linalg.norm(r_next)
-        rebalances = unbalanced(r) and next_norm <= 2.0 * lowest and mass_defect(r_next) < mass_defect(r)
+        rebalances = unbalanced and next_norm <= 2.0 * lowest and defect(r_next) < off
         if next_norm < rnorm or rebalances:
             y, r = y + step, r_next
             lowest = min(lowest, next_norm)
