@@ -144,6 +144,20 @@ def interrupted_status() -> int:
     return 128 + int(_last_interrupt["signal"])
 
 
+def yade_script_arguments(script: str, doc: str, argv: list[str]) -> None:
+    """A script under ``yade -n -x SCRIPT [ARGS]`` gets ARGS in ``sys.argv[1:]``; its parameters
+    come from a yade-batch table (``readParamsFromTable``), so ``-h``/``--help`` prints ``doc`` and
+    exits 0, and any other argument is one line and exit status 2, before a run starts."""
+    if not argv:
+        return
+    if any(arg in ("-h", "--help") for arg in argv):
+        print(doc.strip())
+        sys.exit(0)
+    print(f"{script}: {argv[0]}: this script takes no flags; its parameters come from a yade-batch "
+          f"table (yade -n -x {script} --help), or run the same case with python -m hmdem.hele_shaw", file=sys.stderr)
+    sys.exit(2)
+
+
 def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -> int:
     """Run ``commands[args.command](args)``: a batch system's SIGTERM (or kill) ends it like
     Ctrl-C (exit status :func:`interrupted_status`), an :class:`InputError` is one line on stderr

@@ -511,3 +511,17 @@ def test_calibrate_cli_writes_complete_run_directories(tmp_path):
     assert stored["relative_error_vs_paper"] == pytest.approx(stored["permeability"] / 7.43e-13 - 1)
     assert len((out / "permeability.csv").read_text().splitlines()) == 3  # header, sweep, stored packing
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no partial directory left
+
+
+def test_compaction_bar_ends_on_the_last_report(capsys):
+    # a new-user pass: the line is refreshed at most every 0.25 s, so calibrate darcy's bars
+    # ended on a stale wall stress (~92 % of the target); closing shows the last report
+    from hmdem.dem.compaction import CompactionBar
+
+    bar = CompactionBar(every_s=3600.0)
+    bar(10, np.array([1.0e3, 3.0e3]))  # shown: the first report
+    bar(5000, np.array([139.0e3, 141.0e3]))  # throttled
+    bar.close()
+    err = capsys.readouterr().err
+    last_line = err.rstrip().split("\r")[-1].splitlines()[-1]  # tqdm redraws with \r
+    assert "5000 cycles" in last_line and last_line.endswith("wall stress 140.0 kPa")

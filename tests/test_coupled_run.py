@@ -293,6 +293,26 @@ def test_yade_batch_runs_the_radial_script(tmp_path):
         assert config["run"]["command"].startswith("python -m hmdem.hele_shaw radial --case B3")
 
 
+@pytest.mark.parametrize("script", ["radial_injection.py", "hele_shaw_linear.py"])
+def test_yade_scripts_answer_help_and_refuse_flags_before_running(script, tmp_path):
+    # a new-user pass: `yade -n -x yade_scripts/radial_injection.py --help` started A1 (its
+    # parameters come from a table, and yade hands the flags to the script untouched)
+    import subprocess
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parent.parent / "yade_scripts" / script
+    shown = subprocess.run(["yade", "-n", "-x", str(path), "--help"], cwd=tmp_path, capture_output=True, text=True,
+                           timeout=120)
+    assert shown.returncode == 0, shown.stderr[-2000:]
+    assert "readParamsFromTable" in shown.stdout and "yade-batch" in shown.stdout
+    refused = subprocess.run(["yade", "-n", "-x", str(path), "--case", "A3"], cwd=tmp_path, capture_output=True,
+                             text=True, timeout=120)
+    assert refused.returncode == 2
+    assert f"yade_scripts/{script}: --case: this script takes no flags" in refused.stderr
+    assert "Traceback" not in refused.stderr
+    assert list(tmp_path.iterdir()) == []  # no run started, nothing written
+
+
 def test_continued_pv_iteration_converges_and_conserves_mass(small_sample):
     # the paper's likely practice (digest §6): the DEM is not rewound between iterations and
     # p_trial <- p_calc; on this small sample it converges too, and conserves mass

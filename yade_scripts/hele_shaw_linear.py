@@ -19,12 +19,15 @@ ROOT = Path(sys.argv[0]).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.extend(str(p) for p in sorted((ROOT / ".venv" / "lib").glob("python3*/site-packages")))
 
+from hmdem.cli import InputError, sigterm_as_interrupt, yade_script_arguments  # noqa: E402
+
+yade_script_arguments("yade_scripts/hele_shaw_linear.py", __doc__, sys.argv[1:])  # before YADE's scene and any run
+
 from yade import utils  # noqa: E402
 
 utils.readParamsFromTable(logM=2.0, logCa=1.0, seed=0, packing="", out="", noTableOk=True)
 from yade.params import table  # noqa: E402
 
-from hmdem.cli import InputError, sigterm_as_interrupt  # noqa: E402
 from hmdem.sweep.grid import SweepPoint  # noqa: E402
 from hmdem.sweep.runner import RunFailed, run_point  # noqa: E402
 

@@ -21,6 +21,10 @@ ROOT = Path(sys.argv[0]).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.extend(str(p) for p in sorted((ROOT / ".venv" / "lib").glob("python3*/site-packages")))
 
+from hmdem.cli import yade_script_arguments  # noqa: E402
+
+yade_script_arguments("yade_scripts/radial_injection.py", __doc__, sys.argv[1:])  # before YADE's scene and any run
+
 from yade import O, utils  # noqa: E402
 
 utils.readParamsFromTable(case="A1", oneWay=0, maxSteps=0, dt=0.0, grainDensity=0.0, fixedPort=0, friction=-1.0,

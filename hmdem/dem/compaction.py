@@ -39,14 +39,21 @@ class CompactionBar:
         if self.bar is None:  # opened at the first report, so that a closed bar can start again
             self.bar = open_bar(self.tqdm, desc="compaction", unit=" cycles", file=sys.stderr,
                                 bar_format="{desc}: {n} cycles [{elapsed}]{postfix}")
+        self.latest = (cycles, stresses.mean())
         now = time.perf_counter()
         if now - self.last >= self.every_s:
             self.last = now
-            self.bar.n = cycles
-            self.bar.set_postfix_str(f"wall stress {stresses.mean() / 1e3:.1f} kPa")
+            self._show()
+
+    def _show(self) -> None:
+        cycles, stress = self.latest
+        self.bar.n = cycles
+        self.bar.set_postfix_str(f"wall stress {stress / 1e3:.1f} kPa")
 
     def close(self) -> None:
+        """Show the last report (the throttle may have skipped it), then end the line."""
         if self.bar is not None:
+            self._show()
             self.bar.close()
             self.bar = None
 
