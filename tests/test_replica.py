@@ -34,6 +34,19 @@ def test_a_pushed_disc_settles_at_overlap_f_over_k():
     assert pairs.tolist() == [[0, 1]] and normal[0] == pytest.approx(force, rel=1e-6) and shear[0] < 1e-9 * force
 
 
+@pytest.mark.parametrize("gap, touching", [(-1e-12, True), (1e-12, False), (0.1, False)])
+def test_contact_is_decided_on_the_centre_distance(gap, touching):
+    # two fixed discs at 2 r (1 + gap): Law2's test is penetration = 2 r - distance >= 0, and the
+    # replica's squared-distance shortcut for pairs clearly apart must not change it near zero
+    r = 15e-6
+    centres = [[0.0, 0.0], [2 * r * (1.0 + gap), 0.0]]
+    pair = replica(centres, [r, r], [True, True])
+    pair.load(at_rest(centres))
+    pair.timestep = 1e-9
+    pair.run(1)
+    assert pair.contacts()[0].tolist() == ([[0, 1]] if touching else [])
+
+
 def test_contact_forces_conserve_momentum():
     # undamped, no external force, nothing fixed: the contact forces come in equal and opposite
     # pairs, so the total momentum of a jostling heap stays zero to round-off

@@ -317,6 +317,9 @@ def test_floating_components_are_the_islands_cut_off_from_every_dirichlet_domain
     assert list(system.floating_components(np.array([1.0, 0.0, 1.0, 1.0]))) == [0, 0, -1, -1]
     assert list(system.floating_components(np.array([1.0, 1.0, 1.0, 0.0]))) == [0, 0, 0, 0]
     assert list(system.floating_components(np.ones(4))) == [-1, -1, -1, -1]
+    # the labels of one set of open pipes are kept for the next call with it, read-only
+    again = system.floating_components(np.array([1.0, 0.0, 1.0, 1.0]))
+    assert list(again) == [0, 0, -1, -1] and not again.flags.writeable
 
 
 def test_an_island_level_from_a_tiny_nonzero_pivot_is_caught():

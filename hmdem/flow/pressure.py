@@ -48,6 +48,8 @@ class PressureSystem:
     not be passed in.
     """
 
+    _floating_key = None  # the open pipes floating_components last labelled (packed bits)
+
     def __init__(self, pipe_a: np.ndarray, pipe_b: np.ndarray, node: np.ndarray, domain_xy: np.ndarray | None = None):
         self.pipe_a, self.pipe_b, self.node = pipe_a, pipe_b, node
         self.n_unknowns = int(node.max()) + 1 if node.size and node.max() >= 0 else 0
@@ -207,12 +209,24 @@ class PressureSystem:
 
     def floating_components(self, g_open: np.ndarray) -> np.ndarray:
         """Per unknown, a label of its component of open pipes if that component has no open
-        pipe to a Dirichlet domain (a shut-in island: only its storage fixes its level), else -1."""
+        pipe to a Dirichlet domain (a shut-in island: only its storage fixes its level), else -1.
+        Kept (read-only) while the same pipes are open: the P-V evaluations of a coupled step
+        solve over one set of open pipes, and the labelling costs ~0.8 ms on the Huang network."""
+        is_open = g_open > 0.0
+        key = np.packbits(is_open).tobytes()
+        if key != self._floating_key:
+            self._floating_key = None  # a labelling cut short leaves nothing to reuse
+            self._floating = self._label_floating(is_open)
+            self._floating.flags.writeable = False
+            self._floating_key = key
+        return self._floating
+
+    def _label_floating(self, is_open: np.ndarray) -> np.ndarray:
         n = self.n_unknowns
-        inner = self.vab & (g_open > 0.0)
+        inner = self.vab & is_open
         graph = sp.coo_matrix((np.ones(inner.sum()), (self.na[inner], self.nb[inner])), shape=(n, n))
         _, label = connected_components(graph, directed=False)
-        to_dirichlet = (self.va != self.vb) & (g_open > 0.0)
+        to_dirichlet = (self.va != self.vb) & is_open
         grounded_node = np.where(self.va, self.na, self.nb)[to_dirichlet]
         grounded = np.zeros(label.max() + 1 if n else 0, bool)
         grounded[label[grounded_node]] = True
