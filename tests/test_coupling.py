@@ -195,9 +195,10 @@ def test_quasi_newton_converges_where_substitution_diverges():
     np.testing.assert_allclose(x, exact, atol=1e-9)
 
 
-def test_quasi_newton_fits_only_its_newest_secant_pairs():
-    """max_columns = k (--pv-max-columns, decisions #56): each update is the IQN-ILS least-squares
-    update x = h + W c, V c ~ -r, over the k newest secant pairs alone, written out here."""
+def test_quasi_newton_fits_its_newest_secant_pairs_and_the_largest_older_one():
+    """max_columns = k (--pv-max-columns, decisions #56, #81): each update is the IQN-ILS
+    least-squares update x = h + W c, V c ~ -r, over the step's pairs while it has at most k,
+    then over its k - 1 newest and the older one of largest residual change, written out here."""
     from hmdem.coupling.quasi_newton import InterfaceQuasiNewton
 
     rng = np.random.default_rng(3)
@@ -210,7 +211,11 @@ def test_quasi_newton_fits_only_its_newest_secant_pairs():
     for _ in range(8):
         h = m @ x + b
         history.append((h - x, h))
-        pairs = list(zip(history[:-1], history[1:]))[-k:]
+        pairs = list(zip(history[:-1], history[1:]))
+        if len(pairs) > k:
+            older = pairs[:-(k - 1)]
+            lever = max(older, key=lambda pair: np.linalg.norm(pair[1][0] - pair[0][0]))
+            pairs = [lever] + pairs[-(k - 1):]  # column order does not change the least squares
         update = qn.update(x, h)
         if pairs:
             v = np.column_stack([new[0] - old[0] for old, new in pairs])

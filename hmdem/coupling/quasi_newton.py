@@ -54,8 +54,18 @@ class InterfaceQuasiNewton:
         self._best, self._reused = np.inf, False
 
     def _columns(self):
-        """Secant pairs, newest first (they survive the filter), and whether earlier steps' are among them."""
+        """Secant pairs, newest first (they survive the filter), and whether earlier steps' are among them.
+        Where this step has more pairs than ``max_columns``, the newest ``max_columns - 1`` are
+        fitted with the one of largest residual change among the older ones (decisions #81):
+        without it, each time the pair that spans the attempt's large early residuals left the
+        window, the fit was left to differences of nearly converged iterates, which the map's
+        roughness dominates, and the next evaluation often jumped back up towards the first one's
+        mismatch (at evaluations 7, 13, 19 with 4 pairs)."""
         dr, dh = self._dr[::-1], self._dh[::-1]
+        window = self.max_columns - 1
+        if window >= 1 and len(dr) > self.max_columns:
+            lever = window + int(np.argmax([np.linalg.norm(d) for d in dr[window:]]))
+            dr, dh = dr[:window] + [dr[lever]], dh[:window] + [dh[lever]]
         reused = False
         for dt, old_dr, old_dh in reversed(self._archive):
             if dt is not None and self._dt is not None and abs(dt - self._dt) <= 1e-9 * self._dt:
