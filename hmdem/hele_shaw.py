@@ -94,8 +94,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="earlier flow steps (same dt) whose secant pairs the quasi-Newton update reuses "
                           "(default 5; 0 for B1, whose map changes from step to step: BENCHMARKS.md)")
     rad.add_argument("--pv-max-columns", type=positive_int,
-                     help="secant pairs the quasi-Newton update fits at most, newest first (default 40; "
-                          "4 for B1, where fits to older pairs stall the iteration: decisions #56)")
+                     help="secant pairs the quasi-Newton update fits at most: the newest, and past the cap the "
+                          "step's largest residual change in the last slot (default 40; 4 for B1, where fits to "
+                          "older pairs stall the iteration: decisions #56, #81)")
     rad.add_argument("--pocket-newton", action=argparse.BooleanOptionalAction, default=None,
                      help="a scalar Newton step on each trapped pocket after the quasi-Newton update "
                           "(hmdem/coupling/pockets.py; default on, off for B1 and B3); --no-pocket-newton leaves "

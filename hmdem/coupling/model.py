@@ -131,7 +131,8 @@ class CouplingSetup:
     pv_reuse_steps: int = 5
     # secant pairs the IQN update fits at most, newest first (reused ones included). Where the
     # map is rough (B1), a fit to many pairs from iterates far apart can cancel the Newton step
-    # and stall the iteration a few tolerances from convergence (decisions #56)
+    # and stall the iteration a few tolerances from convergence (decisions #56); past the cap, the
+    # last slot keeps the step's largest residual change (quasi_newton.py, decisions #81)
     pv_max_columns: int = 40
     # YADE local damping of the grains during the run (the sample always settles at 0.7). The
     # seed does not state it; 0.7 is PFC's default (digest §2.4, decisions #49)
