@@ -120,13 +120,13 @@ def _sign(x):
 
 
 @numba.njit(cache=True, error_model="numpy")  # no Python zero-division checks in the loop
-def _cycles(pos, vel, spin, radii, inverse_mass, inverse_inertia, free, external, ci, cj, apart, active, normal,
-            shear, k_n, k_s, tan_phi, damping, dt, cycles, anchor, half_skin):
+def _cycles(pos, vel, spin, radii, inverse_mass, inverse_inertia, free, external, ci, cj, active, normal, shear,
+            k_n, k_s, tan_phi, damping, dt, cycles, anchor, half_skin):
     """Up to ``cycles`` DEM cycles (contact forces at x^n and v^(n-1/2), then the leapfrog);
     returns how many ran: fewer when a disc has moved half the skin from ``anchor`` (the
-    candidate list must then be rebuilt). ``apart``: per candidate, a squared centre distance
-    beyond which the pair cannot touch (:func:`_apart`)."""
+    candidate list must then be rebuilt)."""
     n = len(radii)
+    apart = _apart(ci, cj, radii)  # derived once per call: ~1 us against ~15 ms of cycles
     force = np.empty((n, 2))
     torque = np.empty(n)
     limit = half_skin * half_skin
@@ -233,8 +233,7 @@ class DiscReplica:
         self._loaded = [a.copy() for a in self._arrays()]
 
     def _arrays(self):
-        return (self.pos, self.vel, self.spin, self.ci, self.cj, self.apart, self.active, self.normal, self.shear,
-                self.anchor)
+        return self.pos, self.vel, self.spin, self.ci, self.cj, self.active, self.normal, self.shear, self.anchor
 
     def save_state(self) -> None:
         raise NotImplementedError("the replica returns to the state it was loaded from (load)")
@@ -242,7 +241,7 @@ class DiscReplica:
     def restore_state(self) -> None:
         if self._loaded is None:
             raise RuntimeError("the replica was not loaded")
-        (self.pos, self.vel, self.spin, self.ci, self.cj, self.apart, self.active, self.normal, self.shear,
+        (self.pos, self.vel, self.spin, self.ci, self.cj, self.active, self.normal, self.shear,
          self.anchor) = [a.copy() for a in self._loaded]
 
     def _build_candidates(self, pairs, normals, shear) -> None:
@@ -253,7 +252,6 @@ class DiscReplica:
         self.active, self.normal, self.shear = _carry_over(ci * n + cj, keys[order], np.ones(len(keys), np.bool_),
                                                            normals[order], shear[order])
         self.ci, self.cj = ci, cj
-        self.apart = _apart(ci, cj, self.radii)
         self.anchor = self.pos.copy()
 
     def set_external_forces(self, forces: np.ndarray) -> None:
@@ -263,9 +261,8 @@ class DiscReplica:
         left = int(cycles)
         while left > 0:
             done = _cycles(self.pos, self.vel, self.spin, self.radii, self._inverse_mass, self._inverse_inertia, self._free,
-                           self.external, self.ci, self.cj, self.apart, self.active, self.normal, self.shear,
-                           self.k_n, self.k_s, self.tan_phi, self.damping, self.timestep, left, self.anchor,
-                           0.5 * self.skin)
+                           self.external, self.ci, self.cj, self.active, self.normal, self.shear, self.k_n, self.k_s,
+                           self.tan_phi, self.damping, self.timestep, left, self.anchor, 0.5 * self.skin)
             left -= done
             if left > 0:
                 pairs = np.column_stack((self.ci, self.cj))[self.active]
