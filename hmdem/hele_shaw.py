@@ -85,7 +85,8 @@ def build_parser() -> argparse.ArgumentParser:
     rad.add_argument("--pv-tol", type=positive_number, help="P-V iteration relative tolerance (default 1e-3)")
     rad.add_argument("--pv-test", choices=("every", "inflow"),
                      help="where |p_calc - p_trial| must be within the tolerance: in every domain (default, "
-                          "decisions #18) or in the inflow domains only, as seed 004 §3.2 tests it")
+                          "decisions #18) or in the inflow domains only, as seed 004 §3.2 tests it (paper-size B3 "
+                          "then runs away at 0.63 ms: decisions #83)")
     rad.add_argument("--pv-max-iter", type=positive_int,
                      help="P-V iteration cap per attempt (default 12; 24 for B1)")
     rad.add_argument("--pv-grow-after", type=positive_int,

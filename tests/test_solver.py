@@ -381,3 +381,25 @@ def test_darcy_series_meets_its_initial_and_boundary_conditions():
     p_t = (series(x, t + h)[0] - series(x, t - h)[0]) / (2 * h)
     p_xx = (series(x + h, t)[0] - 2 * series(x, t)[0] + series(x - h, t)[0]) / h**2
     np.testing.assert_allclose(p_t, p_xx, atol=1e-6)
+
+
+def test_a_step_that_leaves_a_domain_no_fluid_stops_the_run():
+    # The linear equation of state (digest §4) gives rho = rho_0 (1 + p/K): a solve putting a
+    # domain at p <= -K leaves it no fluid. The middle domain of an oil-filled chain grows by
+    # twice its volume in a step of 1e-9 s, far quicker than its pipes can feed it (V/(K dt) =
+    # 1e-6 against G ~ 3e-9 m^2/(Pa s)), so the implicit solve puts it near -2 K: the run must
+    # stop there, as diverged, with the last accepted state (here the initial one) kept.
+    net = chain_network(3)
+    model = FlowModel(net, FlowSetup(AIR_OIL, rate=1e-7, dt=1e-9))
+    model.volume_change[1] = 2.0 * net.domain_volume[1]
+    state, rec = model.run()
+    assert rec.status == "diverged" and rec.steps == 0
+    assert "domain 1's pressure" in rec.message and "bulk modulus" in rec.message
+    assert np.all(state.pressure == 0.0) and state.t == 0.0
+    # a quarter of that growth leaves it fluid (p ~ -K/2): the step is accepted
+    model = FlowModel(net, FlowSetup(AIR_OIL, rate=1e-7, dt=1e-9, max_steps=1))
+    model.volume_change[1] = 0.5 * net.domain_volume[1]
+    state, rec = model.run()
+    assert rec.status == "max_steps" and rec.steps == 1
+    assert -AIR_OIL.bulk_modulus_def < state.pressure[1] < 0.0
+    assert rec.peak_compression == pytest.approx(-state.pressure[1] / AIR_OIL.bulk_modulus_def, rel=1e-6)

@@ -63,7 +63,7 @@ class RunRecord:
     injection_energy: float = 0.0
     dissipated_energy: float = 0.0
     peak_injection_pressure: float = 0.0
-    peak_compression: float = 0.0  # max over steps and domains of p_i / K_f,i (Eq. 3 mixture)
+    peak_compression: float = 0.0  # max over steps and domains of |p_i| / K_f,i (Eq. 3 mixture)
     max_mass_balance_error: float = 0.0
     stored_volume: float = 0.0  # sum over steps of sum_i (V_i/K_i)(p^{n+1} - p^n)
     outflow_volume: float = 0.0  # sum over steps of Q_out dt
@@ -332,6 +332,7 @@ class FlowModel:
                     rec.status = "max_steps"
                     break
                 sol, fill, dt, limiter = step(state, blocked)
+                self._check_fluid_left(state, sol, dt)
                 blocked = sol.blocked
                 self._accept(state, sol, fill, dt, limiter)
                 if progress is not None:
@@ -349,6 +350,21 @@ class FlowModel:
             rec.breakthrough_time = state.t
         return state, rec
 
+    def _check_fluid_left(self, state: FlowState, sol, dt: float) -> None:
+        """Stop the run (before the step is accepted) if a domain's pressure is at or below minus
+        its fluid's bulk modulus: the linear equation of state (digest §4) then leaves the domain
+        no fluid, rho = rho_0 (1 + p/K) <= 0. Compression is not bounded this way: the law
+        only grows inaccurate (``peak_compression``). No run with a converged step has come near
+        this; the seed's P-V test at the port alone (``--pv-test inflow``) let paper-size B3 run
+        away to -3e13 Pa and go on for 37,000 steps (BENCHMARKS.md)."""
+        ratio = sol.pressure * self.storage_coefficient(state) / self.volume  # p_i / K_f,i
+        worst = int(np.argmin(ratio))
+        if ratio[worst] <= -1.0:
+            raise SimulationDiverged(
+                f"step {self.record.steps + 1} (t = {state.t:.6g} s, dt = {dt:.3g} s): domain {worst}'s pressure "
+                f"{sol.pressure[worst]:.3g} Pa is below minus its fluid's bulk modulus "
+                f"({sol.pressure[worst] / ratio[worst]:.3g} Pa), where the linear equation of state leaves no fluid")
+
     def _accept(self, state: FlowState, sol, fill, dt: float, limiter: str) -> None:
         rec = self.record
         div = self.system.divergence(sol.pipe_flux)
@@ -359,7 +375,7 @@ class FlowModel:
         rec.dissipated_energy += float(np.sum(sol.pipe_flux * dp)) * dt  # Eq. 26, viscous part
         rec.peak_injection_pressure = max(rec.peak_injection_pressure, p_in)
         storage = self.storage_coefficient(state)  # V_i / K_f,i
-        rec.peak_compression = max(rec.peak_compression, float(np.max(sol.pressure * storage / self.volume)))
+        rec.peak_compression = max(rec.peak_compression, float(np.max(np.abs(sol.pressure) * storage / self.volume)))
         # discrete mass balance of the step (digest U8): sum_i [(V_i/K_i)(p^{n+1} - p^n) + dV_i] =
         # (Q_in - Q_out) dt, with p^{n+1} - p^n the increment the scheme produced. Storing
         # p^n + increment in a double rounds it by ~1e-16 |p|, which in the shortest Eq. 18 steps
