@@ -354,7 +354,7 @@ class FlowModel:
         """Stop the run (before the step is accepted) if a domain's pressure is at or below minus
         its fluid's bulk modulus: the linear equation of state (digest §4) then leaves the domain
         no fluid, rho = rho_0 (1 + p/K) <= 0. Compression is not bounded this way: the law
-        only grows inaccurate (``peak_compression``). No run with a converged step has come near
+        only grows inaccurate (``peak_compression``). No run with the every-domain P-V test has come near
         this; the seed's P-V test at the port alone (``--pv-test inflow``) let paper-size B3 run
         away to -3e13 Pa and go on for 37,000 steps (BENCHMARKS.md)."""
         ratio = sol.pressure * self.storage_coefficient(state) / self.volume  # p_i / K_f,i
