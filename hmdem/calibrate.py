@@ -168,7 +168,9 @@ def plot_biaxial(path: Path, res) -> None:
 
 def run_biaxial_command(args, argv) -> int:
     from .dem.biaxial import MAX_STRAIN, load_biaxial, run_biaxial
+    from .dem.compaction import check_confining_stress
 
+    check_confining_stress("--sigma3", [args.sigma3], args.contact_stiffness)
     out = new_run_directory(args.out, args.command)
     t0 = time.perf_counter()
     bar = None if args.quiet else _BiaxialProgress(args.max_strain)
@@ -268,9 +270,10 @@ def run_darcy_command(args, argv) -> int:
     from .coupling.apertures import ApertureLaw
     from .coupling.darcy import PAPER_PERMEABILITY, PAPER_STRESS
     from .coupling.radial import default_huang_packing_path
-    from .dem.compaction import CompactionBar
+    from .dem.compaction import CompactionBar, check_confining_stress
     from .dem.runs import permeability_sweep, stored_permeability
 
+    check_confining_stress("--stresses", args.stresses, args.contact_stiffness)
     path = args.packing or Path(str(default_huang_packing_path()))
     packing = read_compacted_packing(path)
     out = new_run_directory(args.out, args.command)

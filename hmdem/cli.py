@@ -22,6 +22,11 @@ class InputError(ValueError):
     """Bad command-line input found after parsing (e.g. a missing file): one line, exit 2."""
 
 
+class CommandFailed(RuntimeError):
+    """A command's work could not give its result (e.g. a compaction that did not settle): one
+    line, exit 1, nothing written."""
+
+
 class OneLineParser(argparse.ArgumentParser):
     """argparse parser whose errors are one line, prefixed by :attr:`command` (set by each CLI)."""
 
@@ -60,6 +65,8 @@ non_negative_number = number_in("a finite number >= 0", lambda v: v >= 0)
 # a near-contact gap as a fraction of the smaller radius: beyond one radius a pair is no throat
 contact_gap_fraction = number_in("a fraction of the smaller radius in [0, 1]", lambda v: 0 <= v <= 1)
 local_damping = number_in("a number in [0, 1) (YADE's local damping)", lambda v: 0 <= v < 1)
+# the P-V test passes |p_calc - p_trial| <= rtol max |p| + 1 Pa: from rtol = 1 on, any trial does
+relative_tolerance = number_in("a number in (0, 1) (a fraction of the largest |p|)", lambda v: 0 < v < 1)
 
 
 def int_at_least(minimum: int, allowed: str | None = None, maximum: int | None = None):
@@ -161,7 +168,7 @@ def yade_script_arguments(script: str, doc: str, argv: list[str]) -> None:
 def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -> int:
     """Run ``commands[args.command](args)``: a batch system's SIGTERM (or kill) ends it like
     Ctrl-C (exit status :func:`interrupted_status`), an :class:`InputError` is one line on stderr
-    and exit status 2, and so is an ``--out`` that another process took during the run
+    and exit status 2 (a :class:`CommandFailed` one line and 1), and so is an ``--out`` that another process took during the run
     (:class:`~hmdem.rundir.RunDirectoryTaken`). The SIGTERM handler is the command's only:
     the previous one is back when it returns."""
     with sigterm_as_interrupt():
@@ -171,6 +178,9 @@ def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -
         except (InputError, RunDirectoryTaken) as exc:
             print(f"{prog}: {exc}", file=sys.stderr)
             return 2
+        except CommandFailed as exc:
+            print(f"{prog}: {exc}", file=sys.stderr)
+            return 1
         except KeyboardInterrupt:  # a run's time steps catch their own; this one came outside them
             print(f"{prog}: interrupted; the results in progress were not written", file=sys.stderr)
             return interrupted_status()

@@ -17,7 +17,7 @@ from . import __version__
 from .cases import CASES
 from .cli import (InputError, OneLineParser, add_contact_arguments, check_aperture_fits_grains, contact_gap_fraction,
                   dispatch, interrupted_status, local_damping, new_run_directory, non_negative_int, positive_int,
-                  positive_number, read_compacted_packing, read_packing)
+                  positive_number, read_compacted_packing, read_packing, relative_tolerance)
 from .flow.darcy_transient import STEADY_T_D, read_darcy_test
 from .flow.fluids import WEAK_COMPRESSION
 from .network.contact_graph import NEAR_CONTACT_GAP
@@ -82,7 +82,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_contact_arguments(rad, stiffness=False)  # k_n is the packing's: compaction --contact-stiffness
     rad.add_argument("--dem-cycles", type=positive_int,
                      help="DEM cycles per flow step (the paper: 2000); default: the stable DEM step")
-    rad.add_argument("--pv-tol", type=positive_number, help="P-V iteration relative tolerance (default 1e-3)")
+    rad.add_argument("--pv-tol", type=relative_tolerance,
+                     help="P-V iteration relative tolerance, of the largest |p| (default 1e-3)")
     rad.add_argument("--pv-test", choices=("every", "inflow"),
                      help="where |p_calc - p_trial| must be within the tolerance: in every domain (default, "
                           "decisions #18) or in the inflow domains only, as seed 004 §3.2 tests it (paper-size B3 "
@@ -137,6 +138,20 @@ def add_run_options(sub: argparse.ArgumentParser, default_packing: str) -> None:
                      help="keep N ParaView snapshots as the front advances (each 1/N of its way to the outflow; "
                           "t_max for single-phase runs) and the final state: domains.pvd (and contacts.pvd with "
                           "moving grains) over snapshots/*.vtu")
+
+
+LONGEST_FILL_TIME = 1e300  # [s]: a run's clock, its steps and its plots stay inside double precision
+
+
+def check_fill_time(args, pore_volume: float, rate: float) -> None:
+    """An :class:`InputError` naming the rate flags when the injection rate Q they give would fill
+    the pores (``pore_volume`` / Q) in more than ``LONGEST_FILL_TIME``: ``--viscosity-ratio
+    1e300`` scaled the flow step to 3e303 s, and the run's plot overflowed at t = 1.2e308 s."""
+    flags = [f"--{name.replace('_', '-')} {getattr(args, name):g}" for name in ("rate", "ca_star", "viscosity_ratio")
+             if getattr(args, name) is not None]
+    if flags and rate and not pore_volume / rate < LONGEST_FILL_TIME:
+        raise InputError(f"{', '.join(flags)}: must give an injection rate that fills the pores within "
+                         f"{LONGEST_FILL_TIME:g} s; this one, Q = {rate:.3g} m^2/s, takes {pore_volume / rate:.3g} s")
 
 
 def make_case(args):
@@ -211,6 +226,7 @@ def run_linear(args) -> int:
     case = make_case(args)
     sc = build_scenario(case, seed=args.seed, inlet=args.inlet, scheme=args.scheme, packing_path=args.packing)
     check_aperture_fits_grains(case.mean_aperture, sc.packing_radii, args.mean_aperture is not None)
+    check_fill_time(args, float(sc.net.domain_volume.sum()), sc.setup.rate)
     if args.max_steps is not None:
         sc.setup.max_steps = args.max_steps
     elif args.scheme == "explicit" and args.t_max is None:

@@ -34,6 +34,7 @@ DATA = Path(__file__).resolve().parent.parent / "hmdem" / "data"
     (["radial", "--ca-star", "nan"], "--ca-star"),
     (["radial", "--dem-cycles", "0"], "--dem-cycles"),
     (["radial", "--threads", "0"], "--threads"),
+    (["radial", "--pv-tol", "1"], "--pv-tol"),
     (["radial", "--pv-reuse-steps", "-1"], "--pv-reuse-steps"),
     (["radial", "--pv-max-columns", "0"], "--pv-max-columns"),
     (["radial", "--damping", "1"], "--damping"),
@@ -60,6 +61,8 @@ DATA = Path(__file__).resolve().parent.parent / "hmdem" / "data"
     # a new-user pass: a directory; a near-contact gap of 50 radii ran
     (["radial", "--packing", str(DATA)], "--packing"),
     (["radial", "--contact-gap", "1.01"], "--contact-gap"),
+    # a new-user pass: M = 1e300 scaled the step to 3e303 s and the plot overflowed at the end
+    (["linear", "--case", "vf", "--viscosity-ratio", "1e300"], "--viscosity-ratio"),
 ])
 def test_bad_input_one_line_exit_2_nothing_written(tmp_path, args, name):
     out = tmp_path / "run"
@@ -530,6 +533,19 @@ def test_threads_flag_reaches_yade(tmp_path):
                                  "--quiet"], capture_output=True, text=True, env=env)
     assert proc.returncode == 0, proc.stderr
     assert tomllib.loads((out / "config.toml").read_text())["dem"]["threads"] == 3
+
+
+@pytest.mark.yade
+def test_many_threads_do_not_abort_yades_collider(tmp_path):
+    # YADE 2023.02's parallel insertion sort read past its bounds list at 63 chunks on the
+    # paper-size sample, and Debian's build aborted within B3's first 10 steps, with no run directory
+    # (hmdem.dem.discs.collider_threads); the collider now gets at most 40 of the 64 threads
+    out = tmp_path / "b3"
+    env = {k: v for k, v in os.environ.items() if k != "OMP_NUM_THREADS"}
+    proc = subprocess.run(CMD + ["radial", "--case", "B3", "--max-steps", "10", "--threads", "64", "--out", str(out),
+                                 "--quiet"], capture_output=True, text=True, env=env)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert json.loads((out / "summary.json").read_text())["steps"] == 10
 
 
 def test_pressure_beyond_the_constant_bulk_modulus_range_is_flagged(tmp_path, capsys):

@@ -118,3 +118,29 @@ def test_thread_count_cannot_change_once_yade_runs():
     assert import_yade(running) is yade
     with pytest.raises(RuntimeError, match="OpenMP thread"):
         import_yade(running + 1)
+
+
+def test_collider_threads_keep_every_chunk_inside_the_bounds_list():
+    # the paper-size sample's 1,395 discs have 2,790 bounds per axis. At 41 chunks of
+    # 2790 // 41 + 1 = 69 the last starts at 40 x 69 = 2,760, 30 bounds from the end: under
+    # half a chunk. At 40 chunks of 70 it starts at 2,730, 60 from the end. 63 chunks of 45
+    # start the last at 2,790, the end itself (what aborted: test_cli.py)
+    from hmdem.dem.discs import collider_threads
+
+    assert collider_threads(1395, 64) == 40
+    assert collider_threads(1395, 40) == 40
+    assert collider_threads(1395, 2) == 2
+    assert collider_threads(1395, 1) == 1
+    # 2,000 bounds: 35 chunks of 58 leave the last 28, under half of 58; 34 of 59 leave 53
+    assert collider_threads(1000, 64) == 34
+
+
+@pytest.mark.yade
+def test_a_compaction_that_does_not_settle_says_so():
+    # the servo ran its whole cycle budget and wrote the sample as it stood (a new-user pass:
+    # --stress 1 gave a packing with 0 Pa on every wall); 100 cycles cannot bring 50 loose
+    # discs to 0.14 MPa
+    from hmdem.dem.compaction import CompactionNotSettled, compact_sample
+
+    with pytest.raises(CompactionNotSettled, match="did not settle at 140000 Pa within 100 cycles"):
+        compact_sample(50, 4e-4, max_cycles=100)

@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from ..cli import open_bar
+from ..cli import CommandFailed, open_bar
 from ..network.packing import CONTACT_STIFFNESS, GRAIN_DENSITY, DiscPacking
 from ..yade_env import import_yade
 from .assembly import run_cycles
@@ -24,6 +24,36 @@ from .packing import random_seed_positions
 
 UNBALANCED_FORCE = 1e-3
 WALLS = ((0, -1), (0, +1), (1, -1), (1, +1))  # (axis, side): left, right, bottom, top
+R_MIN, R_MAX = 13.0e-6, 21.6e-6  # the Huang sample's radii [m] (seed 004 §4.2)
+MAX_OVERLAP = 0.1  # the largest mean contact overlap a compaction may ask for, of the smallest radius
+
+
+class CompactionNotSettled(CommandFailed):
+    """The servo did not bring the walls to the confining stress, in equilibrium, within its cycles."""
+
+
+def max_confining_stress(k_n: float, r_min: float = R_MIN, r_max: float = R_MAX) -> float:
+    """The confining stress [Pa] whose mean contact overlap is ``MAX_OVERLAP`` x r_min.
+
+    A wall stress sigma on grains of mean diameter r_min + r_max puts ~sigma (r_min + r_max) on
+    a contact, so the mean overlap is ~sigma (r_min + r_max) / k_n: 65 nm at the Huang sample's
+    0.14 MPa, where the shipped packing's mean elastic overlap is 60 nm (decisions #20). The
+    paper's Darcy calibration goes to 2.1 MPa, 0.075 r_min at Table 2's k_n; the bound, 0.1
+    r_min, is 2.8 MPa there. Beyond it the linear contact stops describing touching discs: at
+    7 MPa the discs' areas overlap so much that they cover all but 0.25 % of the box.
+    """
+    return MAX_OVERLAP * r_min * k_n / (r_min + r_max)
+
+
+def check_confining_stress(flag: str, stresses, k_n: float) -> None:
+    """An :class:`~hmdem.cli.InputError` naming ``flag`` when a stress asks the linear contact
+    of stiffness ``k_n`` for more than :func:`max_confining_stress`."""
+    from ..cli import InputError
+
+    limit = max_confining_stress(k_n)
+    if max(stresses) > limit:
+        raise InputError(f"{flag}: must be at most {limit:.3g} Pa with k_n {k_n:g} N/m (beyond it the mean contact "
+                         f"overlap passes {MAX_OVERLAP:g} of the smallest radius), got {max(stresses):g}")
 
 
 class CompactionBar:
@@ -58,7 +88,7 @@ class CompactionBar:
             self.bar = None
 
 
-def compact_sample(n: int = 1395, size: float = 1.25e-3, r_min: float = 13.0e-6, r_max: float = 21.6e-6,
+def compact_sample(n: int = 1395, size: float = 1.25e-3, r_min: float = R_MIN, r_max: float = R_MAX,
                    stress: float = 0.14e6, seed: int = 0, k_n: float = CONTACT_STIFFNESS,
                    density: float = GRAIN_DENSITY,
                    loose_factor: float = 1.15, tolerance: float = 0.005, max_cycles: int = 400_000,
@@ -68,7 +98,9 @@ def compact_sample(n: int = 1395, size: float = 1.25e-3, r_min: float = 13.0e-6,
     ``size``: nominal final box side (only sets the starting box, loose_factor x size); the
     final box follows from the stress. Stops when all four wall stresses are within
     ``tolerance`` of the target and the grains are in equilibrium (YADE's unbalanced force,
-    mean resultant over mean contact force, below ``UNBALANCED_FORCE``).
+    mean resultant over mean contact force, below ``UNBALANCED_FORCE``); raises
+    :class:`CompactionNotSettled` when that has not happened after ``max_cycles`` cycles
+    (a stress of 1 Pa barely moves the servo's walls: 0 Pa on them after 400,000 cycles).
     """
     import_yade()
     from yade import O, utils
@@ -111,12 +143,15 @@ def compact_sample(n: int = 1395, size: float = 1.25e-3, r_min: float = 13.0e-6,
     gain = 0.2 * size / (k_n * chunk * O.dt)
     mean_r = radii.mean()
     cycles = 0
-    while cycles < max_cycles:
+    while True:
         s = wall_stresses()
         deficit = (stress - s) / stress
-        done = np.all(np.abs(deficit) < tolerance)
-        if done and utils.unbalancedForce() < UNBALANCED_FORCE:
+        if np.all(np.abs(deficit) < tolerance) and utils.unbalancedForce() < UNBALANCED_FORCE:
             break
+        if cycles >= max_cycles:
+            O.reset()
+            raise CompactionNotSettled(f"the walls did not settle at {stress:g} Pa within {max_cycles:,} cycles "
+                                       f"(wall stresses {', '.join(f'{v:.3g}' for v in s)} Pa at the end)")
         speed = np.clip(gain * (stress - s), -0.02 * mean_r / (chunk * O.dt), 0.02 * mean_r / (chunk * O.dt))
         for w, (axis, side), v in zip(walls, WALLS, speed):
             vel = [0.0, 0.0, 0.0]
@@ -178,6 +213,7 @@ def write_packing(args) -> int:
     """The ``compaction`` command's work: compact, then write ``--out`` in one go."""
     from ..rundir import replaced_atomically
 
+    check_confining_stress("--stress", [args.stress], args.contact_stiffness)
     t0 = time.perf_counter()
     bar = None if args.quiet else CompactionBar()
     try:

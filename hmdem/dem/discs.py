@@ -83,11 +83,36 @@ def add_discs(centres: np.ndarray, radii: np.ndarray, k_n: float, ks_over_kn: fl
     return ids
 
 
+def collider_threads(bodies: int, threads: int) -> int:
+    """The most OpenMP threads, up to ``threads``, that YADE 2023.02's parallel insertion sort
+    survives on a scene of ``bodies`` bodies.
+
+    ``InsertionSortCollider::insertionSortParallel`` (used from 1,000 bodies on) cuts each
+    axis's 2 x bodies bounds into m = threads chunks starting at k (s // m + 1), then lowers m
+    one by one while a chunk is narrower than 4 Verlet distances. In the plane every z bound
+    lies within a radius of 0, so m always goes down through every count from ``threads`` to 1.
+    A count whose last chunk starts at or past the end of the list reads past it: Debian's
+    build aborts on its assertion (``--threads 64`` on the paper-size Huang sample, 2,790
+    bounds, aborted at 63). The sort then joins the chunks reading up to half a chunk beyond
+    each start, so a count whose last chunk is shorter than half a chunk is refused too.
+    """
+    size = 2 * bodies
+    safe = 1
+    for chunks in range(2, threads + 1):
+        width = size // chunks + 1
+        if (chunks - 1) * width + width // 2 >= size:
+            break
+        safe = chunks
+    return safe
+
+
 def disc_engines(walls: bool, damping: float = 0.7, detection_factor: float | None = None) -> list:
     """The engine list of a disc scene: collider, sphere(-wall) geometry, the linear Cundall-Strack
     contact with Coulomb friction (seed 004 Eqs. 9-10) and local damping. ``detection_factor``
-    (> 1) also catches pairs that touch only to round-off on the first step."""
+    (> 1) also catches pairs that touch only to round-off on the first step. Call it once the
+    scene's bodies are in: the collider's threads are capped for their count (collider_threads)."""
     import_yade()
+    from yade import O
     from yade.wrapper import (Bo1_Sphere_Aabb, Bo1_Wall_Aabb, ForceResetter, Ig2_Sphere_Sphere_ScGeom,
                               Ig2_Wall_Sphere_ScGeom, InsertionSortCollider, InteractionLoop,
                               Ip2_FrictMat_FrictMat_FrictPhys, Law2_ScGeom_FrictPhys_CundallStrack,
@@ -97,9 +122,13 @@ def disc_engines(walls: bool, damping: float = 0.7, detection_factor: float | No
     detect = {} if detection_factor is None else {"interactionDetectionFactor": detection_factor}
     bounds = [Bo1_Sphere_Aabb(**enlarge)] + ([Bo1_Wall_Aabb()] if walls else [])
     geometry = [Ig2_Sphere_Sphere_ScGeom(**detect)] + ([Ig2_Wall_Sphere_ScGeom()] if walls else [])
+    collider = InsertionSortCollider(bounds)
+    threads = collider_threads(len(O.bodies), O.numThreads)
+    if threads < O.numThreads:  # the other engines keep every thread
+        collider.ompThreads = threads
     return [
         ForceResetter(),
-        InsertionSortCollider(bounds),
+        collider,
         InteractionLoop(geometry, [Ip2_FrictMat_FrictMat_FrictPhys()], [Law2_ScGeom_FrictPhys_CundallStrack()]),
         NewtonIntegrator(damping=damping),
     ]
