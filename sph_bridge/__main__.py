@@ -49,8 +49,12 @@ DEFAULT_DX = 5e-4  # m: the coarsest resolution of seed 000 Table 1 (CI runs the
 DEFAULT_THETA = 65.16  # degrees: PMMA, the lab value of seed 000 §4.1
 DEFAULT_VOLUME = 2.5e-7  # m^3: ~2,000 particles at dx = 5e-4 m
 MIN_DROP_CELLS = 400  # a drop needs a few kernel supports across to have a surface and a bulk
+MAX_DROP_CELLS = 10_000_000  # the shipped drops have 2,000-31,000; --volume 1e300 failed building its block
+MAX_LAYERS = 10_000  # 1.4M particles in the channel; 1e8 layers asked numpy for 107 GiB
 MIN_START_LAYERS = 3  # a starting slab lower than this is mostly surface
 SNAPSHOT_EVERY = 4  # samples between the droplet's ParaView frames
+# seed 000's spacings are 0.2-0.5 mm; at 1e-300 m, dx^3 underflowed to a division by zero
+particle_spacing = number_in("a particle spacing in [1e-06, 1] m", lambda v: 1e-6 <= v <= 1)
 
 
 ANNEAL_HELP = ("starting rms thermal speed [m/s] of an annealed relaxation: Langevin kicks against the "
@@ -72,7 +76,7 @@ def build_parser() -> OneLineParser:
     sub = parser.add_subparsers(dest="command", parser_class=_Parser)
     text = "sessile drop (or --ridge) relaxed on a wall: height, width and contact angle against theory"
     p = sub.add_parser("droplet", help=text, description=text)
-    p.add_argument("--dx", type=positive_number, default=DEFAULT_DX, help=f"particle spacing [m] (default {DEFAULT_DX})")
+    p.add_argument("--dx", type=particle_spacing, default=DEFAULT_DX, help=f"particle spacing [m] (default {DEFAULT_DX})")
     p.add_argument("--theta", type=angle,
                    help=f"target static contact angle [deg] selecting the calibration (default {DEFAULT_THETA}, "
                         "or the --calibration run's)")
@@ -100,7 +104,7 @@ def build_parser() -> OneLineParser:
                         "the result of a straight run")
     text = "find s_ff for a surface tension (free slab) and s_sf for a contact angle (zero-gravity drop)"
     p = sub.add_parser("calibrate", help=text, description=text)
-    p.add_argument("--dx", type=positive_number, default=DEFAULT_DX, help=f"particle spacing [m] (default {DEFAULT_DX})")
+    p.add_argument("--dx", type=particle_spacing, default=DEFAULT_DX, help=f"particle spacing [m] (default {DEFAULT_DX})")
     p.add_argument("--theta", type=angle, default=DEFAULT_THETA, help=f"target contact angle [deg] (default {DEFAULT_THETA})")
     p.add_argument("--surface-tension", type=positive_number, default=droplet.SURFACE_TENSION,
                    help=f"target surface tension [N/m] (default {droplet.SURFACE_TENSION})")
@@ -116,8 +120,8 @@ def build_parser() -> OneLineParser:
     for name, text in (("hydrostatic", "water at rest between two walls under gravity: dP/dz = rho g"),
                        ("poiseuille", "body-force flow between two walls: the parabolic profile")):
         p = sub.add_parser(name, help=text, description=text)
-        p.add_argument("--dx", type=positive_number, default=1e-3, help="particle spacing [m] (default 1e-3)")
-        p.add_argument("--layers", type=int_at_least(MIN_LAYERS), default=16,
+        p.add_argument("--dx", type=particle_spacing, default=1e-3, help="particle spacing [m] (default 1e-3)")
+        p.add_argument("--layers", type=int_at_least(MIN_LAYERS, maximum=MAX_LAYERS), default=16,
                        help=f"channel width in particle layers (>= {MIN_LAYERS}, default 16)")
         p.add_argument("--gravity", type=positive_number, default=cases.DEFAULT_GRAVITY[name],
                        help=f"body force per mass [m/s^2] (default {cases.DEFAULT_GRAVITY[name]}; "
@@ -288,13 +292,22 @@ def open_checkpoint(directory: Path, out: Path, state: str, restore):
 
 
 def run_droplet(args) -> int:
-    if args.volume / args.dx**3 < MIN_DROP_CELLS:
-        raise InputError(f"--volume: {args.volume:g} m^3 is {args.volume / args.dx**3:.0f} particles at dx = "
-                         f"{args.dx:g} m; at least {MIN_DROP_CELLS} are needed")
+    if not MIN_DROP_CELLS <= args.volume / args.dx**3 <= MAX_DROP_CELLS:
+        raise InputError(f"--volume: {args.volume:g} m^3 is {args.volume / args.dx**3:.3g} particles at dx = "
+                         f"{args.dx:g} m; from {MIN_DROP_CELLS:,} to {MAX_DROP_CELLS:,} are allowed")
     if args.start_height is not None and args.start_height < MIN_START_LAYERS * args.dx:
         raise InputError(f"--start-height: {args.start_height:g} m is under {MIN_START_LAYERS} particle layers at "
                          f"dx = {args.dx:g} m; at least {MIN_START_LAYERS * args.dx:g} m is allowed")
     params, sigma, source = droplet_parameters(args)
+    if args.gravity > 0:
+        # a puddle, at most 2 lambda_c tall (the default start), must be resolved like a given
+        # --start-height: at 1e300 m/s^2 the particles flew to overflow without end
+        puddle = 2.0 * droplet.capillary_length(sigma, params.rho0_fluid, args.gravity)
+        if puddle < MIN_START_LAYERS * args.dx:
+            largest = sigma / params.rho0_fluid / (MIN_START_LAYERS * args.dx / 2.0) ** 2
+            raise InputError(f"--gravity: must be at most {largest:.3g} m/s^2 at dx = {args.dx:g} m, where a "
+                             f"puddle, 2 lambda_c, spans {MIN_START_LAYERS} particle layers (or give a finer --dx); "
+                             f"got {args.gravity:g}, 2 lambda_c = {puddle:.3g} m")
     out = new_run_directory(args.out, args.command)
     plate_theta = args.theta
     if source == "command line":  # no calibration ties these strengths to --theta (decisions #63)

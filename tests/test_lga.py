@@ -558,6 +558,9 @@ def test_reduced_permeability_ordering_and_magnitude(reduced_study):
     (["permeability", "--hurst", "1.2"], "--hurst"),
     (["permeability", "--workers", "0"], "--workers"),
     (["poiseuille", "--g", "0"], "--g"),
+    # a new-user pass (decisions #84): a 56 GiB allocation's traceback; planning 1e8 surfaces
+    (["poiseuille", "--ny", "100000000"], "--ny"),
+    (["permeability", "--surfaces", "100000000"], "--surfaces"),
 ])
 def test_bad_input_is_one_line(tmp_path, argv, flag):
     out = tmp_path / "run"

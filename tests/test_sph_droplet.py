@@ -432,7 +432,12 @@ def test_droplet_bad_input_is_one_line(tmp_path):
                        (["calibrate", "--ridge-sizes", "5"], "--ridge-sizes"),
                        (["droplet", "--start-height", "1e-3"], "--start-height"),
                        (["droplet", "--anneal", "-0.1"], "--anneal"), (["calibrate", "--anneal", "-1"], "--anneal"),
-                       (["droplet", "--anneal", "0.1"], "--anneal")):
+                       (["droplet", "--anneal", "0.1"], "--anneal"),
+                       # a new-user pass (decisions #84): a 2e-152 m puddle ran on at overflow, 20 min past SIGTERM
+                       (["droplet", "--gravity", "1e300"], "--gravity"),
+                       # dx^3 underflowed to a division by zero; 1e300 m^3 failed building its block
+                       (["droplet", "--dx", "1e-300"], "--dx"), (["droplet", "--volume", "1e300"], "--volume"),
+                       (["hydrostatic", "--layers", "100000000"], "--layers")):
         bad = tmp_path / "bad"
         proc = subprocess.run(cmd + args + ["--out", str(bad)], capture_output=True, text=True)
         lines = proc.stderr.strip().splitlines()

@@ -85,6 +85,11 @@ def test_axis_spec_gives_evenly_spaced_values_with_both_ends():
      "--packing"),  # 34 um grains under 0.42 mm apertures
     (["--seeds", "0"], "--seeds"),
     (["--workers", "-1"], "--workers"),
+    # a new-user pass (decisions #84): 100,000 workers broke the embedded cluster's start with a
+    # traceback; 1e9 seeds spent minutes planning 3e10 runs
+    (["--workers", "100000"], "--workers"),
+    (["--seeds", "1000000000"], "--seeds"),
+    (["--log-m", "-5:5:1000", "--log-ca", "-8:2:1000"], "--log-m"),
     (["--scheduler", "notanaddress"], "--scheduler"),  # before the sweep directory is made
     (["--scheduler", "foo://host:1"], "--scheduler"),
 ])

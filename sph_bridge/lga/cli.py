@@ -105,7 +105,9 @@ def build_parser() -> OneLineParser:
                                                                        "0.3, 0.5, 0.7)")
             p.add_argument("--relative-roughness", type=roughness, action="append",
                            help="y_max/(delta_av/2) (repeatable; default 0.741, 0.588, 0.417)")
-            p.add_argument("--surfaces", type=int_at_least(1), default=2, help="surfaces per H (default 2)")
+            # each surface is a channel per roughness: 1e8 of them planned until killed
+            p.add_argument("--surfaces", type=int_at_least(1, maximum=1000), default=2,
+                           help="surfaces per H (default 2, at most 1000)")
             p.add_argument("--workers", type=int_at_least(1), default=default_workers(),
                            help="channels run side by side in worker processes, one core each (default: the "
                                 "machine's %(default)s cores; the numbers do not depend on it)")
@@ -487,10 +489,19 @@ def reynolds_ladder(args, name, channel, plan, bar) -> None:
                   f"to keep u_max near {MACH_AIM} (C17: u <= {MACH_LIMIT})")
 
 
+# lattice sites nx x ny may span: --ny 1e8 asked numpy for 56 GiB for one of its boolean masks
+# (a byte a site) and --nx 1e8 allocated until it was killed; a rough channel holds a few times
+# ny rows (2 y_max + delta_av)
+MAX_SITES = 20_000_000
+
+
 def main(argv) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     args.argv = list(argv)
+    if getattr(args, "nx", None) is not None and args.nx * args.ny > MAX_SITES:
+        parser.exit(2, f"{PROG}: --nx, --ny: must span at most {MAX_SITES:,} sites (nx x ny), got "
+                       f"{args.nx * args.ny:,}\n")
     return dispatch(PROG, parser, args, {"poiseuille": run_poiseuille, "rough": run_rough,
                                          "permeability": run_permeability, "nonlinear": run_nonlinear})
 
