@@ -523,16 +523,20 @@ def test_b1_runs_with_its_own_pv_settings_unless_the_flags_say_otherwise(tmp_pat
     assert tuple(coupling[k] for k in keys) == (12, 5, True, 40)
 
 
+def b3_on_threads(out: Path, threads: int, steps: int) -> None:
+    """B3 for ``steps`` steps on ``threads`` OpenMP threads, in a fresh process: OpenMP reads the
+    count when YADE loads."""
+    env = {k: v for k, v in os.environ.items() if k != "OMP_NUM_THREADS"}
+    proc = subprocess.run(CMD + ["radial", "--case", "B3", "--max-steps", str(steps), "--threads", str(threads),
+                                 "--out", str(out), "--quiet"], capture_output=True, text=True, env=env)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+
+
 @pytest.mark.yade
 def test_threads_flag_reaches_yade(tmp_path):
-    # OpenMP reads the thread count when YADE loads, so this needs a fresh process; 3, not 2,
-    # so that OpenMP's own default (one per core, 2 on the CI machine) cannot pass for it
-    out = tmp_path / "b3"
-    env = {k: v for k, v in os.environ.items() if k != "OMP_NUM_THREADS"}
-    proc = subprocess.run(CMD + ["radial", "--case", "B3", "--max-steps", "2", "--threads", "3", "--out", str(out),
-                                 "--quiet"], capture_output=True, text=True, env=env)
-    assert proc.returncode == 0, proc.stderr
-    assert tomllib.loads((out / "config.toml").read_text())["dem"]["threads"] == 3
+    # 3, not 2, so that OpenMP's own default (one per core, 2 on the CI machine) cannot pass for it
+    b3_on_threads(tmp_path / "b3", 3, 2)
+    assert tomllib.loads((tmp_path / "b3" / "config.toml").read_text())["dem"]["threads"] == 3
 
 
 @pytest.mark.yade
@@ -540,12 +544,8 @@ def test_many_threads_do_not_abort_yades_collider(tmp_path):
     # YADE 2023.02's parallel insertion sort read past its bounds list at 63 chunks on the
     # paper-size sample, and Debian's build aborted within B3's first 10 steps, with no run directory
     # (hmdem.dem.discs.collider_threads); the collider now gets at most 40 of the 64 threads
-    out = tmp_path / "b3"
-    env = {k: v for k, v in os.environ.items() if k != "OMP_NUM_THREADS"}
-    proc = subprocess.run(CMD + ["radial", "--case", "B3", "--max-steps", "10", "--threads", "64", "--out", str(out),
-                                 "--quiet"], capture_output=True, text=True, env=env)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    assert json.loads((out / "summary.json").read_text())["steps"] == 10
+    b3_on_threads(tmp_path / "b3", 64, 10)
+    assert json.loads((tmp_path / "b3" / "summary.json").read_text())["steps"] == 10
 
 
 def test_pressure_beyond_the_constant_bulk_modulus_range_is_flagged(tmp_path, capsys):
