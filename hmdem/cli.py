@@ -168,8 +168,9 @@ def yade_script_arguments(script: str, doc: str, argv: list[str]) -> None:
 def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -> int:
     """Run ``commands[args.command](args)``: a batch system's SIGTERM (or kill) ends it like
     Ctrl-C (exit status :func:`interrupted_status`), an :class:`InputError` is one line on stderr
-    and exit status 2 (a :class:`CommandFailed` one line and 1), and so is an ``--out`` that another process took during the run
-    (:class:`~hmdem.rundir.RunDirectoryTaken`). The SIGTERM handler is the command's only:
+    and exit status 2, and so is an ``--out`` that another process took during the run
+    (:class:`~hmdem.rundir.RunDirectoryTaken`); a :class:`CommandFailed` is one line and exit
+    status 1. The SIGTERM handler is the command's only:
     the previous one is back when it returns."""
     with sigterm_as_interrupt():
         try:

@@ -76,7 +76,8 @@ def build_parser() -> OneLineParser:
     sub = parser.add_subparsers(dest="command", parser_class=_Parser)
     text = "sessile drop (or --ridge) relaxed on a wall: height, width and contact angle against theory"
     p = sub.add_parser("droplet", help=text, description=text)
-    p.add_argument("--dx", type=particle_spacing, default=DEFAULT_DX, help=f"particle spacing [m] (default {DEFAULT_DX})")
+    p.add_argument("--dx", type=particle_spacing, default=DEFAULT_DX,
+                   help=f"particle spacing [m] (default {DEFAULT_DX})")
     p.add_argument("--theta", type=angle,
                    help=f"target static contact angle [deg] selecting the calibration (default {DEFAULT_THETA}, "
                         "or the --calibration run's)")
@@ -104,7 +105,8 @@ def build_parser() -> OneLineParser:
                         "the result of a straight run")
     text = "find s_ff for a surface tension (free slab) and s_sf for a contact angle (zero-gravity drop)"
     p = sub.add_parser("calibrate", help=text, description=text)
-    p.add_argument("--dx", type=particle_spacing, default=DEFAULT_DX, help=f"particle spacing [m] (default {DEFAULT_DX})")
+    p.add_argument("--dx", type=particle_spacing, default=DEFAULT_DX,
+                   help=f"particle spacing [m] (default {DEFAULT_DX})")
     p.add_argument("--theta", type=angle, default=DEFAULT_THETA, help=f"target contact angle [deg] (default {DEFAULT_THETA})")
     p.add_argument("--surface-tension", type=positive_number, default=droplet.SURFACE_TENSION,
                    help=f"target surface tension [N/m] (default {droplet.SURFACE_TENSION})")

@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from ..cli import CommandFailed, open_bar
+from ..cli import CommandFailed, InputError, open_bar
 from ..network.packing import CONTACT_STIFFNESS, GRAIN_DENSITY, DiscPacking
 from ..yade_env import import_yade
 from .assembly import run_cycles
@@ -48,8 +48,6 @@ def max_confining_stress(k_n: float, r_min: float = R_MIN, r_max: float = R_MAX)
 def check_confining_stress(flag: str, stresses, k_n: float) -> None:
     """An :class:`~hmdem.cli.InputError` naming ``flag`` when a stress asks the linear contact
     of stiffness ``k_n`` for more than :func:`max_confining_stress`."""
-    from ..cli import InputError
-
     limit = max_confining_stress(k_n)
     if max(stresses) > limit:
         raise InputError(f"{flag}: must be at most {limit:.3g} Pa with k_n {k_n:g} N/m (beyond it the mean contact "
