@@ -1,0 +1,95 @@
+"""What B3's injection pressure follows after its early peak: the dry skeleton's compaction (digest H4).
+
+    .venv/bin/python benchmarks/b3_back_stress.py RUN_DIR [RUN_DIR ...] [--frames]
+
+Reads radial run directories written with ``--snapshots N``. Domain volumes are centre-polygon
+areas (digest §3.3) and the hull grains are fixed, so the room the invaded domains gain as the
+grains move (the cavity) is taken from the dry domains: their area strain is the compaction of
+the dry skeleton. From the trough after the early peak to breakthrough, the injection pressure
+is fitted by least squares against that strain, p_in = p0 + M strain, and, for the reading of
+a viscous invaded zone (BENCHMARKS.md, "Where B3's injected volume goes"), against ln of the
+invaded domains' starting area. M is compared with the sample's biaxial E (hmdem.calibrate).
+``--frames`` prints each snapshot. A second or two per directory.
+"""
+import argparse
+import tomllib
+from pathlib import Path
+
+import meshio
+import numpy as np
+
+from hmdem.coupling.geometry import signed_triangle_areas
+from hmdem.network.network import OUTSIDE
+from hmdem.snapshots import read_collection
+
+
+def frames(run: Path) -> np.ndarray:
+    """Per snapshot: t, p_in (the largest domain pressure, the port's), the dry skeleton's area
+    strain, the invaded domains' starting area."""
+    net, fractures = np.load(run / "network.npz"), np.load(run / "fractures.npz")
+    inside = net["triangle_domain"] != OUTSIDE
+    triangles, domain = net["triangles"][inside], net["triangle_domain"][inside]
+    n = len(net["domain_volume"])
+    start = fractures["initial_positions"]
+    orientation = np.sign(signed_triangle_areas(start, triangles))  # areas stay positive as grains move
+
+    def areas(points):
+        return np.bincount(domain, orientation * signed_triangle_areas(points, triangles), n)
+
+    v0 = areas(start)
+    rows = []
+    for t, name in read_collection(run / "domains.pvd"):
+        mesh = meshio.read(name)
+        cells = mesh.cell_data
+        saturation, pressure = np.zeros(n), np.zeros(n)
+        saturation[cells["domain"][0]] = cells["saturation"][0]
+        pressure[cells["domain"][0]] = cells["pressure"][0]
+        dry = saturation == 0
+        strain = (v0[dry] - areas(mesh.points[:, :2])[dry]).sum() / v0[dry].sum()
+        rows.append((t, pressure.max(), strain, v0[~dry].sum()))
+    return np.array(rows)
+
+
+def find(table: dict, key: str):
+    """``key``'s value in a nested config table (None if absent)."""
+    for k, v in table.items():
+        found = find(v, key) if isinstance(v, dict) else (v if k == key else None)
+        if found is not None:
+            return found
+    return None
+
+
+def fit(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float]:
+    """Least squares y = a + b x: a, b and the coefficient of determination."""
+    design = np.c_[np.ones_like(x), x]
+    (a, b), *_ = np.linalg.lstsq(design, y, rcond=None)
+    return a, b, 1.0 - (y - design @ (a, b)).var() / y.var()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("runs", nargs="+", type=Path, help="radial run directories with snapshots")
+    parser.add_argument("--frames", action="store_true", help="print each snapshot")
+    args = parser.parse_args()
+    print("| run | k_n [N/m] | t_f [s] | trough p_in [MPa] at [us] | p_in at t_f [MPa] | dry compaction at t_f | "
+          "p0 [MPa] | M [MPa] | R² | against ln(invaded area): R² |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for run in args.runs:
+        r = frames(run)
+        stiffness = find(tomllib.loads((run / "config.toml").read_text()), "contact_stiffness_n_per_m")
+        after_peak = r[:, 0] > 5e-6  # the early peak is the port's filling, in the first few us
+        trough = int(np.argmin(np.where(after_peak, r[:, 1], np.inf)))
+        t, p, strain, invaded = r[trough:].T
+        p0, modulus, r2 = fit(strain, p)
+        r2_log = fit(np.log(invaded), p)[2]
+        if args.frames:
+            for row in r:
+                print(f"  {row[0] * 1e6:7.1f} us  p_in {row[1] / 1e6:6.2f} MPa  dry compaction {row[2]:6.2%}  "
+                      f"invaded {row[3] * 1e6:.4f} mm²")
+        print(f"| {run} | {stiffness:.3g} | {r[-1, 0]:.3g} | {p[0] / 1e6:.2f} at "
+              f"{t[0] * 1e6:.0f} | {p[-1] / 1e6:.2f} | {strain[-1]:.2%} | {p0 / 1e6:.2f} | {modulus / 1e6:.1f} | "
+              f"{r2:.3f} | {r2_log:.3f} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
