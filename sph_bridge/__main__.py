@@ -42,6 +42,7 @@ from . import calibrations, cases, checkpoint, droplet
 from .calibrate import DROP_RADIUS_CELLS, MIN_RIDGE_CELLS
 from .interrupts import exit_status, interrupted
 from .output import particle_state, write_particles
+from .simulation import stable_step
 
 PROG = "python -m sph_bridge"
 MIN_LAYERS = 8  # the channel must hold a full kernel (h = 3.42 dx) from each wall
@@ -51,6 +52,8 @@ DEFAULT_VOLUME = 2.5e-7  # m^3: ~2,000 particles at dx = 5e-4 m
 MIN_DROP_CELLS = 400  # a drop needs a few kernel supports across to have a surface and a bulk
 MAX_DROP_CELLS = 10_000_000  # the shipped drops have 2,000-31,000; --volume 1e300 failed building its block
 MAX_LAYERS = 10_000  # 1.4M particles in the channel; 1e8 layers asked numpy for 107 GiB
+MAX_CHANNEL_STEPS = 1_000_000  # 3-7 h at the default size; the defaults take 355 (Poiseuille) and 674 steps
+MAX_CHANNEL_GRAVITY = 1e150  # squared accelerations overflow near 1.3e154 m/s^2: at 1e160 the column came out garbage
 MIN_START_LAYERS = 3  # a starting slab lower than this is mostly surface
 SNAPSHOT_EVERY = 4  # samples between the droplet's ParaView frames
 # seed 000's spacings are 0.2-0.5 mm; at 1e-300 m, dx^3 underflowed to a division by zero
@@ -164,13 +167,30 @@ def config_of(args, sim, **sections) -> dict:
             "parameters": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(sim.params).items()}}
 
 
+def check_channel_steps(args, params, t_end: float) -> None:
+    """Refuse a channel run that would take more than MAX_CHANNEL_STEPS steps: the stable step
+    (Eqs. 30-31 and the viscous limit) with the body force as the acceleration, over the case's
+    end time. Poiseuille's c0 grows with the flow speed, so its step count grows with --gravity
+    and falls with --viscosity; the hydrostatic column's does not change with --gravity."""
+    step = stable_step(params.h, params.c0, args.gravity, params.rho0_fluid / params.viscosity)
+    steps = t_end / step
+    if steps > MAX_CHANNEL_STEPS:
+        flags = "--gravity, --viscosity, --dx, --layers" if args.command == "poiseuille" else "--dx, --layers"
+        raise InputError(f"{flags}: this channel needs about {steps:.3g} steps of {step:.3g} s to "
+                         f"{t_end:.3g} s; at most {MAX_CHANNEL_STEPS:,} are allowed")
+
+
 def run_case(args) -> int:
     out = new_run_directory(args.out, args.command)
+    if args.gravity > MAX_CHANNEL_GRAVITY:
+        raise InputError(f"--gravity: {args.gravity:g} m/s^2; at most {MAX_CHANNEL_GRAVITY:g} is allowed "
+                         "(squared accelerations overflow beyond)")
     height = args.layers * args.dx
     if args.command == "hydrostatic":
         params, t_end = cases.hydrostatic_parameters(args.dx, args.layers, args.gravity)
     else:
         params, t_end = cases.poiseuille_parameters(args.dx, args.layers, args.gravity, args.viscosity)
+    check_channel_steps(args, params, t_end)
     sim = cases.channel(args.dx, args.layers, params)
     bar, advance = progress_bar(args, t_end)
     status = "finished"

@@ -34,6 +34,17 @@ GRAVITY = 9.81  # m/s^2 (not printed in seed 000; digest §2.8)
 FULL_KERNEL = 0.98  # number density / bulk lattice value above which a particle has no surface within h
 
 
+def stable_step(h: float, c0: float, acceleration: float, density_over_viscosity: float) -> float:
+    """min of Eq. 30 (0.25 h / (3 c0)), Eq. 31 (0.25 sqrt(h / (3 |a|))) and the viscous limit
+    rho h^2 / (32 mu), Morris et al.'s 0.125 h_s^2 / nu with the smoothing length h_s = h/2 of a
+    kernel with support h. The printed Eq. 32, rho h^2 / (9 mu), is 3.6x longer and let a viscous
+    Poiseuille run (nu = 2.6e-3 m^2/s, dx = 1 mm) blow up; in the paper's water runs neither binds
+    (decisions #34)."""
+    sound = 0.25 * h / (3.0 * c0)
+    force = 0.25 * math.sqrt(h / (3.0 * acceleration)) if acceleration > 0 else math.inf
+    return min(sound, force, density_over_viscosity * h * h / 32.0)
+
+
 @dataclass
 class SphParameters:
     """Resolution, fluid and wall properties (SI). ``s_ff``/``s_sf``: pairwise-force strengths
@@ -119,17 +130,10 @@ class Simulation:
                              p.s_sf, self.h, self.gravity, *self._lists(), g.forward)
 
     def stable_step(self) -> float:
-        """min of Eq. 30 (0.25 h / (3 c0)), Eq. 31 (0.25 min sqrt(h / (3 |a|))) and the viscous
-        limit rho h^2 / (32 mu), Morris et al.'s 0.125 h_s^2 / nu with the smoothing length
-        h_s = h/2 of a kernel with support h. The printed Eq. 32, rho h^2 / (9 mu), is 3.6x
-        longer and let a viscous Poiseuille run (nu = 2.6e-3 m^2/s, dx = 1 mm) blow up; in the
-        paper's water runs neither binds (decisions #34)."""
-        h, c0 = self.h, self.params.c0
+        """:func:`stable_step` of the fluid particles' largest acceleration and smallest rho / mu."""
         a = np.sqrt((self.acc[self.fluid] ** 2).sum(axis=1)).max(initial=0.0)
-        sound = 0.25 * h / (3.0 * c0)
-        force = 0.25 * math.sqrt(h / (3.0 * a)) if a > 0 else math.inf
-        viscous = float(np.min(self.rho[self.fluid] * h * h / (32.0 * self.mu[self.fluid]), initial=math.inf))
-        return min(sound, force, viscous)
+        density_over_viscosity = float(np.min(self.rho[self.fluid] / self.mu[self.fluid], initial=math.inf))
+        return stable_step(self.h, self.params.c0, a, density_over_viscosity)
 
     # ---- time step -------------------------------------------------------------------------
     def step(self) -> None:

@@ -341,6 +341,7 @@ def test_body_force_poiseuille_flow_between_two_walls():
     # H = 16 mm, nu = 2.6e-3 m^2/s so that the slowest mode decays in tau = H^2/(pi^2 nu) = 10 ms;
     # read at t = 5 tau (transient e^-5 < 1 %).
     from sph_bridge import cases
+    from sph_bridge.simulation import stable_step
 
     dx, layers, g = 1e-3, 16, 0.8
     params, t_end = cases.poiseuille_parameters(dx, layers, g, viscosity=2.6)
@@ -348,6 +349,10 @@ def test_body_force_poiseuille_flow_between_two_walls():
     sim.run(t_end)
     result = cases.measure_poiseuille(sim, layers * dx, g).summary
     assert result["max_profile_error"] <= 0.05
+    # the CLI's step bound reads the run's length off the stable step with the body force as the
+    # acceleration (sph_bridge/__main__.py check_channel_steps): the run took that many steps
+    estimate = t_end / stable_step(params.h, params.c0, g, params.rho0_fluid / params.viscosity)
+    assert sim.record.steps == math.ceil(estimate)
     assert result["max_cross_velocity_m_per_s"] <= 0.01 * result["theory_max_velocity_m_per_s"]  # no cross flow
 
 
@@ -374,7 +379,12 @@ def test_command_line_run_directory_and_bad_input(tmp_path):
     cloud = meshio.read(out / "particles.vtu")
     assert len(cloud.points) == summary["particles"] and "velocity" in cloud.point_data
     for args, name in ((["poiseuille", "--dx", "-1"], "--dx"), (["hydrostatic", "--layers", "4"], "--layers"),
-                       (["poiseuille", "--viscosity", "nan"], "--viscosity")):
+                       (["poiseuille", "--viscosity", "nan"], "--viscosity"),
+                       # a new-user pass: 1e300 m/s^2 overflowed to a garbage column with exit 0, and a
+                       # Poiseuille run at 1e5 m/s^2 needs 2.2e6 steps (its c0 follows the flow speed)
+                       (["hydrostatic", "--gravity", "1e300"], "--gravity"),
+                       (["poiseuille", "--gravity", "1e5"], "--gravity"),
+                       (["poiseuille", "--viscosity", "1e-6"], "--viscosity")):
         bad = tmp_path / "bad"
         proc = subprocess.run(cmd + args + ["--out", str(bad)], capture_output=True, text=True)
         lines = proc.stderr.strip().splitlines()
