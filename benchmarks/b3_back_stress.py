@@ -18,8 +18,7 @@ from pathlib import Path
 import meshio
 import numpy as np
 
-from hmdem.coupling.geometry import signed_triangle_areas
-from hmdem.network.network import OUTSIDE
+from b3_volume_split import domain_areas  # a sibling script (benchmarks/ is the script's own folder)
 from hmdem.snapshots import read_collection
 
 
@@ -27,16 +26,8 @@ def frames(run: Path) -> np.ndarray:
     """Per snapshot: t, p_in (the largest domain pressure, the port's), the dry skeleton's area
     strain, the invaded domains' starting area."""
     net, fractures = np.load(run / "network.npz"), np.load(run / "fractures.npz")
-    inside = net["triangle_domain"] != OUTSIDE
-    triangles, domain = net["triangles"][inside], net["triangle_domain"][inside]
-    n = len(net["domain_volume"])
     start = fractures["initial_positions"]
-    orientation = np.sign(signed_triangle_areas(start, triangles))  # areas stay positive as grains move
-
-    def areas(points):
-        return np.bincount(domain, orientation * signed_triangle_areas(points, triangles), n)
-
-    v0 = areas(start)
+    n = len(net["domain_volume"])
     rows = []
     for t, name in read_collection(run / "domains.pvd"):
         mesh = meshio.read(name)
@@ -45,18 +36,10 @@ def frames(run: Path) -> np.ndarray:
         saturation[cells["domain"][0]] = cells["saturation"][0]
         pressure[cells["domain"][0]] = cells["pressure"][0]
         dry = saturation == 0
-        strain = (v0[dry] - areas(mesh.points[:, :2])[dry]).sum() / v0[dry].sum()
+        v0, v = domain_areas(net, start, mesh.points[:, :2])
+        strain = (v0[dry] - v[dry]).sum() / v0[dry].sum()
         rows.append((t, pressure.max(), strain, v0[~dry].sum()))
     return np.array(rows)
-
-
-def find(table: dict, key: str):
-    """``key``'s value in a nested config table (None if absent)."""
-    for k, v in table.items():
-        found = find(v, key) if isinstance(v, dict) else (v if k == key else None)
-        if found is not None:
-            return found
-    return None
 
 
 def fit(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float]:
@@ -76,7 +59,7 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|---|---|---|")
     for run in args.runs:
         r = frames(run)
-        stiffness = find(tomllib.loads((run / "config.toml").read_text()), "contact_stiffness_n_per_m")
+        stiffness = tomllib.loads((run / "config.toml").read_text())["dem"]["contact_stiffness_n_per_m"]
         after_peak = r[:, 0] > 5e-6  # the early peak is the port's filling, in the first few us
         trough = int(np.argmin(np.where(after_peak, r[:, 1], np.inf)))
         t, p, strain, invaded = r[trough:].T
