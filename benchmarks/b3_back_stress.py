@@ -8,7 +8,8 @@ grains move (the cavity) is taken from the dry domains: their area strain is the
 the dry skeleton. From the trough after the early peak to breakthrough, the injection pressure
 is fitted by least squares against that strain, p_in = p0 + M strain, and, for the reading of
 a viscous invaded zone (BENCHMARKS.md, "Where B3's injected volume goes"), against ln of the
-invaded domains' starting area. M is compared with the sample's biaxial E (hmdem.calibrate).
+invaded domains' starting area (its slope given per unit ln R, R the zone's equivalent radius).
+M is compared with the sample's biaxial E (``python -m hmdem.calibrate biaxial``).
 ``--frames`` prints each snapshot. A second or two per directory.
 """
 import argparse
@@ -55,7 +56,7 @@ def main() -> None:
     parser.add_argument("--frames", action="store_true", help="print each snapshot")
     args = parser.parse_args()
     print("| run | k_n [N/m] | t_f [s] | trough p_in [MPa] at [us] | p_in at t_f [MPa] | dry compaction at t_f | "
-          "p0 [MPa] | M [MPa] | R² | against ln(invaded area): R² |")
+          "p0 [MPa] | M [MPa] | R² | against ln(invaded area): R², slope per unit ln R [MPa] |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for run in args.runs:
         r = frames(run)
@@ -64,14 +65,14 @@ def main() -> None:
         trough = int(np.argmin(np.where(after_peak, r[:, 1], np.inf)))
         t, p, strain, invaded = r[trough:].T
         p0, modulus, r2 = fit(strain, p)
-        r2_log = fit(np.log(invaded), p)[2]
+        _, per_ln_area, r2_log = fit(np.log(invaded), p)
         if args.frames:
             for row in r:
                 print(f"  {row[0] * 1e6:7.1f} us  p_in {row[1] / 1e6:6.2f} MPa  dry compaction {row[2]:6.2%}  "
                       f"invaded {row[3] * 1e6:.4f} mm²")
         print(f"| {run} | {stiffness:.3g} | {r[-1, 0]:.3g} | {p[0] / 1e6:.2f} at "
               f"{t[0] * 1e6:.0f} | {p[-1] / 1e6:.2f} | {strain[-1]:.2%} | {p0 / 1e6:.2f} | {modulus / 1e6:.1f} | "
-              f"{r2:.3f} | {r2_log:.3f} |", flush=True)
+              f"{r2:.3f} | {r2_log:.3f}, {2 * per_ln_area / 1e6:.2f} |", flush=True)  # ln area = 2 ln R
 
 
 if __name__ == "__main__":
