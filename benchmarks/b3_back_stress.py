@@ -24,8 +24,8 @@ from hmdem.snapshots import read_collection
 
 
 def frames(run: Path) -> np.ndarray:
-    """Per snapshot: t, p_in (the largest domain pressure, the port's), the dry skeleton's area
-    strain, the invaded domains' starting area."""
+    """Per snapshot: t, p_in (the mean over the inlet domains, as timeseries.csv's p_in_mean), the
+    dry skeleton's area strain, the invaded domains' starting area."""
     net, fractures = np.load(run / "network.npz"), np.load(run / "fractures.npz")
     start = fractures["initial_positions"]
     n = len(net["domain_volume"])
@@ -39,7 +39,7 @@ def frames(run: Path) -> np.ndarray:
         dry = saturation == 0
         v0, v = domain_areas(net, start, mesh.points[:, :2])
         strain = (v0[dry] - v[dry]).sum() / v0[dry].sum()
-        rows.append((t, pressure.max(), strain, v0[~dry].sum()))
+        rows.append((t, pressure[net["inlet_domains"]].mean(), strain, v0[~dry].sum()))
     return np.array(rows)
 
 
