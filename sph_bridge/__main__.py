@@ -52,7 +52,7 @@ DEFAULT_VOLUME = 2.5e-7  # m^3: ~2,000 particles at dx = 5e-4 m
 MIN_DROP_CELLS = 400  # a drop needs a few kernel supports across to have a surface and a bulk
 MAX_DROP_CELLS = 10_000_000  # the shipped drops have 2,000-31,000; --volume 1e300 failed building its block
 MAX_LAYERS = 10_000  # 1.4M particles in the channel; 1e8 layers asked numpy for 107 GiB
-MAX_CHANNEL_STEPS = 1_000_000  # 3-7 h at the default size; the defaults take 355 (Poiseuille) and 674 steps
+MAX_CHANNEL_STEPS = 1_000_000  # 3-10 h at the default size; the defaults take 355 (Poiseuille) and 674 steps
 MAX_CHANNEL_GRAVITY = 1e150  # squared accelerations overflow near 1.3e154 m/s^2: at 1e160 the column came out garbage
 MIN_START_LAYERS = 3  # a starting slab lower than this is mostly surface
 SNAPSHOT_EVERY = 4  # samples between the droplet's ParaView frames
