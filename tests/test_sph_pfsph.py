@@ -350,7 +350,7 @@ def test_body_force_poiseuille_flow_between_two_walls():
     result = cases.measure_poiseuille(sim, layers * dx, g).summary
     assert result["max_profile_error"] <= 0.05
     # the CLI's step bound reads the run's length off the stable step with the body force as the
-    # acceleration (sph_bridge/__main__.py check_channel_steps): the run took that many steps
+    # acceleration (sph_bridge/__main__.py check_poiseuille_steps): the run took that many steps
     estimate = t_end / stable_step(params.h, params.c0, g, params.rho0_fluid / params.viscosity)
     assert sim.record.steps == math.ceil(estimate)
     assert result["max_cross_velocity_m_per_s"] <= 0.01 * result["theory_max_velocity_m_per_s"]  # no cross flow
