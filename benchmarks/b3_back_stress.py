@@ -10,7 +10,9 @@ is fitted by least squares against that strain, p_in = p0 + M strain, and, for t
 a viscous invaded zone (BENCHMARKS.md, "Where B3's injected volume goes"), against ln of the
 invaded domains' starting area (its slope given per unit ln R, R the zone's equivalent radius).
 M is compared with the sample's biaxial E (``python -m hmdem.calibrate biaxial``).
-``--frames`` prints each snapshot. A second or two per directory.
+``--frames`` prints each snapshot, with the sample's area: a run with ``--boundary loaded``
+(decisions #86) has no fixed hull, its dry domains can grow and the fit does not apply; its
+frames still read. A second or two per directory.
 """
 import argparse
 import tomllib
@@ -20,12 +22,15 @@ import meshio
 import numpy as np
 
 from b3_volume_split import domain_areas  # a sibling script (benchmarks/ is the script's own folder)
+from hmdem.coupling.model import VOLUME_FLOOR
 from hmdem.snapshots import read_collection
 
 
 def frames(run: Path) -> np.ndarray:
     """Per snapshot: t, p_in (the mean over the inlet domains, as timeseries.csv's p_in_mean), the
-    dry skeleton's area strain, the invaded domains' starting area."""
+    dry skeleton's area strain (compaction positive), the invaded domains' starting area, the
+    sample's area strain (growth positive: 0 with the hull fixed) and the number of polygons
+    squeezed to 1 % of their starting area or turned inside out (model.py's VOLUME_FLOOR)."""
     net, fractures = np.load(run / "network.npz"), np.load(run / "fractures.npz")
     start = fractures["initial_positions"]
     n = len(net["domain_volume"])
@@ -39,7 +44,8 @@ def frames(run: Path) -> np.ndarray:
         dry = saturation == 0
         v0, v = domain_areas(net, start, mesh.points[:, :2])
         strain = (v0[dry] - v[dry]).sum() / v0[dry].sum()
-        rows.append((t, pressure[net["inlet_domains"]].mean(), strain, v0[~dry].sum()))
+        rows.append((t, pressure[net["inlet_domains"]].mean(), strain, v0[~dry].sum(), v.sum() / v0.sum() - 1.0,
+                     np.sum(v <= VOLUME_FLOOR * v0)))
     return np.array(rows)
 
 
@@ -63,13 +69,13 @@ def main() -> None:
         stiffness = tomllib.loads((run / "config.toml").read_text())["dem"]["contact_stiffness_n_per_m"]
         after_peak = r[:, 0] > 5e-6  # the early peak is the port's filling, in the first few us
         trough = int(np.argmin(np.where(after_peak, r[:, 1], np.inf)))
-        t, p, strain, invaded = r[trough:].T
+        t, p, strain, invaded = r[trough:, :4].T
         p0, modulus, r2 = fit(strain, p)
         _, per_ln_area, r2_log = fit(np.log(invaded), p)
         if args.frames:
             for row in r:
                 print(f"  {row[0] * 1e6:7.1f} us  p_in {row[1] / 1e6:6.2f} MPa  dry compaction {row[2]:6.2%}  "
-                      f"invaded {row[3] * 1e6:.4f} mm²")
+                      f"invaded {row[3] * 1e6:.4f} mm²  sample area {row[4]:+.2%}  floored {row[5]:.0f}")
         print(f"| {run} | {stiffness:.3g} | {r[-1, 0]:.3g} | {p[0] / 1e6:.2f} at "
               f"{t[0] * 1e6:.0f} | {p[-1] / 1e6:.2f} | {strain[-1]:.2%} | {p0 / 1e6:.2f} | {modulus / 1e6:.1f} | "
               f"{r2:.3f} | {r2_log:.3f}, {2 * per_ln_area / 1e6:.2f} |", flush=True)  # ln area = 2 ln R

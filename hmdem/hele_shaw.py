@@ -20,7 +20,7 @@ from .cli import (InputError, OneLineParser, add_contact_arguments, check_apertu
                   positive_number, read_compacted_packing, read_packing, relative_tolerance)
 from .flow.darcy_transient import STEADY_T_D, read_darcy_test
 from .flow.fluids import WEAK_COMPRESSION
-from .network.contact_graph import NEAR_CONTACT_GAP
+from .network.contact_graph import BOUNDARY_HOLDS, NEAR_CONTACT_GAP
 from .network.packing import GRAIN_DENSITY
 from .snapshots import SnapshotRecorder
 
@@ -75,6 +75,11 @@ def build_parser() -> argparse.ArgumentParser:
     rad.add_argument("--fixed-port", action="store_true",
                      help="hold the grains around the injection domain in place, a rigid injection tube whose "
                           "pipes keep their apertures (default: only the boundary grains are fixed; decisions #68)")
+    rad.add_argument("--boundary", choices=BOUNDARY_HOLDS, default="fixed",
+                     help="fixed: the boundary grains are held in place, the seed's sealed cell edges (default); "
+                          "loaded: each moves along the normal of its side under the constant force that held it "
+                          "once the sample settled (corner grains stay held), a stress-controlled boundary at the "
+                          "sample's confining stress (decisions #86)")
     rad.add_argument("--contact-gap", type=contact_gap_fraction,
                      help="grain pairs closer than this fraction of the smaller radius are pipes, starting "
                           f"detached with the Eq. 14 aperture (default {NEAR_CONTACT_GAP:g}, as for the Lenormand "
@@ -326,7 +331,8 @@ def run_radial(args) -> int:
     sc = build_radial_scenario(case, packing, ca_star=args.ca_star, viscosity_ratio=args.viscosity_ratio,
                                one_way=args.one_way, sigma=args.sigma, fixed_port=args.fixed_port,
                                grain_density=args.grain_density, contact_gap=args.contact_gap,
-                               friction=args.friction, stiffness_ratio=args.stiffness_ratio)
+                               friction=args.friction, stiffness_ratio=args.stiffness_ratio,
+                               boundary_hold=args.boundary)
     for flag, field, convert in COUPLING_FLAGS:
         if getattr(args, flag) is not None:
             setattr(sc.coupling, field, convert(getattr(args, flag)))

@@ -172,6 +172,29 @@ def test_rewind_interrupted_half_way_is_completed_by_the_next(small_sample, monk
     assert np.array_equal(grains.positions(), positions) and np.array_equal(grains.velocities(), velocities)
 
 
+def test_a_loaded_boundary_holds_the_settled_sample_at_its_confining_stress():
+    # --boundary loaded (decisions #86): each boundary grain, released along its side's normal,
+    # carries the force that held it. The sample stays still (the load balances the contacts
+    # exactly: measured 2e-16 m over 3,000 cycles), and on each side the loads sum to the
+    # compaction stress x the side: at most the servo's 0.5 % over it, and less by the share the
+    # corner grains keep (measured 0.956-0.988 on the shipped sample; 5 corner grains of ~4.4 N
+    # against ~175 N a side)
+    sc = build_radial_scenario(RADIAL_CASES["B3"], boundary_hold="loaded")
+    grains = start_grains(sc)
+    pk, axes, load = sc.packing, sc.boundary_axes, grains.boundary_load
+    assert np.array_equal(grains.fixed, sc.fixed & (axes < 0))
+    assert np.array_equal(grains.free_dofs[axes == 0], np.tile([True, False, True], (np.sum(axes == 0), 1)))
+    before = grains.positions()
+    grains.run(3000)
+    assert np.abs(grains.positions() - before).max() < 1e-12
+    (x, y), (width, height), stress = pk.centres.T, pk.box, pk.confining_stress
+    sides = [(axes == 0) & (x < width / 2), (axes == 0) & (x > width / 2), (axes == 1) & (y < height / 2),
+             (axes == 1) & (y > height / 2)]
+    for side, axis, sign, length in zip(sides, (0, 0, 1, 1), (1, -1, 1, -1), (height, height, width, width)):
+        carried = sign * load[side, axis].sum() / (stress * length)
+        assert 0.9 <= carried <= 1.005
+
+
 def test_grain_density_sets_the_disc_masses_and_the_dem_step(small_sample):
     # --grain-density: YADE's bodies are 1 m-thick discs of rho pi r^2 (digest §15.1), and the
     # stable DEM step, sqrt(m / (Z k)), grows as sqrt(rho). Not exactly: the sample settles
@@ -276,8 +299,8 @@ def test_yade_batch_runs_the_radial_script(tmp_path):
     script = Path(__file__).resolve().parent.parent / "yade_scripts" / "radial_injection.py"
     table = tmp_path / "short.table"
     # friction: -1 leaves Table 2's 0.6, and 0 (frictionless grains) is a value, not "unset"
-    table.write_text("description case oneWay maxSteps fixedPort grainDensity friction stiffnessRatio\n"
-                     "two_way 'B3' 0 2 0 0 -1 0\none_way 'B3' 1 2 1 5300 0 0.5\n")
+    table.write_text("description case oneWay maxSteps fixedPort grainDensity friction stiffnessRatio boundary\n"
+                     "two_way 'B3' 0 2 0 0 -1 0 'fixed'\none_way 'B3' 1 2 1 5300 0 0.5 'loaded'\n")
     proc = subprocess.run(["yade-batch", "--job-threads", "1", "-j", "2", "--log", str(tmp_path / "@.log"),
                            str(table), str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stdout[-2000:]
@@ -286,6 +309,7 @@ def test_yade_batch_runs_the_radial_script(tmp_path):
         summary = json.loads((tmp_path / "runs" / "batch" / name / "summary.json").read_text())
         assert summary["case"] == "B3" and summary["steps"] == 2 and summary["one_way"] is one_way
         assert summary["fixed_port"] is one_way  # the second row holds the port too
+        assert summary["boundary_hold"] == ("loaded" if one_way else "fixed")  # and loads the boundary
         config = tomllib.loads((tmp_path / "runs" / "batch" / name / "config.toml").read_text())
         assert config["dem"]["grain_density_kg_m3"] == density and config["dem"]["friction"] == friction
         assert config["dem"]["stiffness_ratio"] == ratio

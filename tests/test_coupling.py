@@ -325,6 +325,25 @@ def test_fixed_port_holds_the_inflow_domains_grains_as_well():
     assert np.array_equal(held.fixed, free.fixed | np.isin(np.arange(len(free.fixed)), inlet_grains))
 
 
+def test_a_loaded_boundary_moves_each_grain_normal_to_its_side():
+    # --boundary loaded (decisions #86): a grain near the left or right side moves along x, near
+    # the bottom or top along y; interior grains and corner grains (within the corner distance
+    # of two sides) get -1 (the corners stay held)
+    from hmdem.coupling.radial import RADIAL_CASES, boundary_axes, build_radial_scenario
+
+    box = (1.0, 2.0)
+    centres = np.array([[0.05, 1.0], [0.97, 0.6], [0.5, 0.02], [0.4, 1.99], [0.05, 0.08], [0.96, 1.95],
+                        [0.5, 1.0], [0.05, 0.5]])
+    boundary = np.array([True] * 6 + [False, True])
+    assert boundary_axes(centres, box, boundary, corner=0.1).tolist() == [0, 0, 1, 1, -1, -1, -1, 0]
+    sc = build_radial_scenario(RADIAL_CASES["B3"], boundary_hold="loaded")
+    axes = sc.boundary_axes
+    assert sc.boundary_hold == "loaded" and np.all((axes >= 0) <= sc.fixed)  # only boundary grains move
+    assert 0 < np.sum(sc.fixed & (axes < 0)) <= 8  # a few corner grains, at most two per corner
+    with pytest.raises(ValueError, match="boundary_hold"):
+        build_radial_scenario(RADIAL_CASES["B3"], boundary_hold="free")
+
+
 def test_radial_injection_rate_from_the_papers_inlet_perimeter():
     # decisions.md #21: Sigma = 0.2 L (the paper's 0.25 mm of 1.25 mm, digest §10.3), so
     # Q = Ca* 0.2 gamma a0 / eta_inv, independent of the sample size; A1 gets 3.04e-5 m^3/s per m, and

@@ -180,7 +180,9 @@ def test_b3_fractures_conduct_far_better_than_their_sides(huang):
                    "k_n; the paper peaks at 9.7 MPa and plateaus. "
                    "100x heavier grains give an 11.9 MPa peak and still rise 1.47x over the last 80 % of the run; "
                    "compaction --seed 2's packing has the paper's early peak (9.65 MPa) and still rises 2.2x over "
-                   "the last 80 %; only held port grains are flat, at 32-35 MPa (BENCHMARKS.md, decisions #68)")
+                   "the last 80 %; only held port grains are flat, at 32-35 MPa (BENCHMARKS.md, decisions #68). "
+                   "Boundary grains under a constant load instead of fixed (--boundary loaded, not the seed's) "
+                   "turn the rise into a fall to 0.17 MPa, near the confining stress (decisions #86)")
 def test_b3_early_peak_then_decline(huang):
     p = pressure_on_grid(huang("B3")[1])
     # H4: early peak, then decline to a plateau: the peak in the first half of the run and the

@@ -10,7 +10,8 @@ K_N = 7.49e7  # N/m per m, the Huang sample's (digest §15.1)
 
 def replica(centres, radii, fixed, damping=0.7, friction=0.6, density=2650.0):
     masses = density * np.pi * np.asarray(radii) ** 2  # 1 m thick discs
-    return DiscReplica(radii, masses, np.asarray(fixed, bool), k_n=K_N, k_s=K_N, friction=friction, damping=damping)
+    free_dofs = np.repeat(~np.asarray(fixed, bool)[:, None], 3, axis=1)
+    return DiscReplica(radii, masses, free_dofs, k_n=K_N, k_s=K_N, friction=friction, damping=damping)
 
 
 def at_rest(centres):
@@ -87,16 +88,21 @@ def test_shear_force_is_capped_at_the_coulomb_limit(carried):
 
 
 @pytest.mark.yade
-def test_replica_follows_yade_through_a_flow_step():
+@pytest.mark.parametrize("loaded", [False, True])
+def test_replica_follows_yade_through_a_flow_step(loaded):
     # the replica integrates YADE's laws; over 150 cycles (a B1 flow step is ~140) of a push
     # that makes and breaks contacts it ends where YADE does to round-off: 1e-9 of the largest
-    # displacement (measured 3e-11 to 1e-10 on the Huang sample, summation order aside)
+    # displacement (measured 3e-11 to 1e-10 on the Huang sample, summation order aside). With a
+    # loaded boundary (decisions #86) its grains move along one axis each, under a constant load
+    from hmdem.coupling.radial import boundary_axes
     from hmdem.dem.assembly import DiscAssembly
     from hmdem.dem.compaction import compact_sample
 
     pk = compact_sample(n=150, size=0.41e-3, seed=1)
     grains = DiscAssembly(pk.centres, pk.radii, fixed=pk.fixed)
     grains.run(200)
+    axes = boundary_axes(pk.centres, pk.box, pk.fixed, 2.0 * pk.radii.max()) if loaded else np.full(len(pk.radii), -1)
+    grains.release_on_axes(axes)
     grains.save_state()
     start = grains.carried_state()
     twin = DiscReplica.of(grains)
@@ -116,3 +122,9 @@ def test_replica_follows_yade_through_a_flow_step():
     after_yade = {tuple(p) for p in grains.contacts()[0]}
     assert before != after_yade  # contacts were made or broken
     assert {tuple(p) for p in twin.contacts()[0]} == after_yade
+    released = np.flatnonzero(axes >= 0)
+    shift = grains.positions()[released] - start.positions[released]
+    along = shift[np.arange(len(released)), axes[released]]
+    across = shift[np.arange(len(released)), 1 - axes[released]]
+    assert np.all(across == 0.0)  # the other axis is held exactly
+    assert len(released) == 0 or np.abs(along).max() > 1e-3 * moved  # pushed through the sample, they yield

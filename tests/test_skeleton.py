@@ -115,7 +115,7 @@ def test_newton_step_solves_the_linearised_map(packing_network):
     gradient = DomainGeometry(net).volume_gradient(pk.centres)
     stiffness = skeleton_stiffness(pk.centres, pk.radii, pk.contacts, K_N, K_N)
     newton = SkeletonNewton(flow, system.to_nodes_matrix, force, gradient, stiffness, masses,
-                            0.5 * masses * pk.radii**2, free, dt)
+                            0.5 * masses * pk.radii**2, np.repeat(free[:, None], 3, axis=1), dt)
     # the same operators, dense
     dofs = (3 * np.flatnonzero(free)[:, None] + np.arange(3)).ravel()
     s = (stiffness + sp.diags(np.c_[masses, masses, 0.5 * masses * pk.radii**2].ravel() / (0.5 * dt * dt)))

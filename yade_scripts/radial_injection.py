@@ -6,7 +6,8 @@
 Parameters (``readParamsFromTable``; defaults in brackets): case [A1], oneWay [0], maxSteps
 [0 = to breakthrough], dt [0 = the case's], grainDensity [0 = 2650 kg/m^3, Table 3], fixedPort
 [0; 1 holds the injection domain's grains], friction [-1 = 0.6, Table 2], stiffnessRatio
-[0 = 1, Table 2], packing ['' = the shipped sample; a path in quotes, its k_n comes with it],
+[0 = 1, Table 2], boundary ['fixed'; 'loaded' for pistons at the confining stress, decisions #86],
+packing ['' = the shipped sample; a path in quotes, its k_n comes with it],
 out [runs/batch/<job description>, or a fresh runs/<case>-<time> outside a batch]. The run is
 exactly ``python -m hmdem.hele_shaw radial`` with those flags; its run directory is the same.
 The yade launcher runs Debian's Python, so the repository root goes on sys.path first and the
@@ -28,7 +29,7 @@ yade_script_arguments("yade_scripts/radial_injection.py", __doc__, sys.argv[1:])
 from yade import O, utils  # noqa: E402
 
 utils.readParamsFromTable(case="A1", oneWay=0, maxSteps=0, dt=0.0, grainDensity=0.0, fixedPort=0, friction=-1.0,
-                          stiffnessRatio=0.0, packing="", out="", noTableOk=True)
+                          stiffnessRatio=0.0, boundary="fixed", packing="", out="", noTableOk=True)
 from yade.params import table  # noqa: E402
 
 from hmdem.hele_shaw import main  # noqa: E402
@@ -48,6 +49,7 @@ if table.friction != -1:  # 0 is a valid coefficient, so "unset" is -1; other va
     argv += ["--friction", str(table.friction)]
 if table.stiffnessRatio:
     argv += ["--stiffness-ratio", str(table.stiffnessRatio)]
+argv += ["--boundary", table.boundary]  # the CLI checks the value
 if table.packing:
     argv += ["--packing", table.packing]
 description = O.tags["description"] if "description" in O.tags.keys() else ""

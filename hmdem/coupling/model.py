@@ -72,7 +72,7 @@ class GrainModel(Protocol):
     timestep: float
     k_n: float  # contact normal stiffness [N/m per m of depth]
     k_s: float  # contact shear stiffness [N/m per m of depth]
-    fixed: np.ndarray  # grains the DEM holds in place
+    free_dofs: np.ndarray  # (n, 3): the x, y and spin about z of each grain that the DEM moves
     friction: float  # Coulomb coefficient of the contacts
     damping: float  # local damping of the grains' accelerations
 
@@ -496,7 +496,7 @@ class CoupledFlowModel(FlowModel):
         force = self._force_matrix(positions)
         stiffness = skeleton_stiffness(positions, grains.radii, pairs, grains.k_n, np.where(sliding, 0.0, grains.k_s))
         return SkeletonNewton(flow_matrix, system.to_nodes_matrix, force, self.geometry.volume_gradient(positions),
-                              stiffness, masses, 0.5 * masses * grains.radii**2, ~grains.fixed, dt,
+                              stiffness, masses, 0.5 * masses * grains.radii**2, grains.free_dofs, dt,
                               self.coupling.skeleton_inertia_factor)
 
     def _closed(self, blocked: np.ndarray, g: np.ndarray) -> np.ndarray:

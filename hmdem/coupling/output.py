@@ -92,6 +92,11 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None) -> 
         "one_way": sc.coupling.one_way,
         "one_way_volume": sc.coupling.one_way_volume,
         "fixed_port": sc.fixed_port,
+        "boundary_hold": sc.boundary_hold,
+        # the sample's area (the polygon of its boundary grains, = the domains' signed areas
+        # summed) against its start: 0 with a fixed boundary, > 0 where a loaded one yields
+        "sample_area_strain": float(model.geometry.volumes(positions).sum()
+                                    / model.geometry.volumes(initial_positions).sum() - 1.0),
         "sigma_m": sc.sigma,
         "inlet_domain_perimeter_m": domain_perimeter(net, int(net.inlet_domains[0])),
         "confining_stress_pa": sc.packing.confining_stress,
@@ -109,7 +114,7 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None) -> 
         plot_force_chains(tmp / "force_chains.png", positions, grains.radii, pairs, forces,
                           f"{sc.case.name}: contact forces at t = {state.t:.4g} s "
                           f"({int(opened.sum())} opened contacts in red on pattern.png)",
-                          fixed=sc.fixed)
+                          fixed=grains.fixed)
         plot_fracture_chronology(tmp / "fractures.png", net, state.saturation, grains.radii, positions[g[opened]],
                                  model.opened_time[opened], timing["reached"][opened], timing["before_fluid"][opened],
                                  f"{sc.case.name}: {int(opened.sum())} opened contacts by t = {state.t:.4g} s; "
@@ -123,7 +128,8 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None) -> 
                       "n_grains": len(grains.radii), "n_fixed": int(np.sum(sc.fixed)), "threads": grains.threads,
                       "damping": grains.damping, "grain_density_kg_m3": sc.grain_density,
                       "contact_stiffness_n_per_m": grains.k_n, "stiffness_ratio": grains.k_s / grains.k_n,
-                      "friction": grains.friction, "fixed_port": sc.fixed_port}}
+                      "friction": grains.friction, "fixed_port": sc.fixed_port,
+                      "boundary_hold": sc.boundary_hold}}
     overlay = positions[g[opened]]
     return write_run(out, sc, model, state, rec, seed=0, argv=argv, summary_extra=extra, extra_files=files,
                      overlay=overlay, config_extra=config, snapshots=snapshots)

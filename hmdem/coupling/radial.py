@@ -21,7 +21,7 @@ from ..flow.fluids import FluidPair
 from ..flow.simulation import FlowSetup
 from ..network import build_contact_network, find_contacts
 from ..network.boundaries import central_injection_boundaries
-from ..network.contact_graph import NEAR_CONTACT_GAP, hull_grains
+from ..network.contact_graph import BOUNDARY_HOLDS, NEAR_CONTACT_GAP, hull_grains
 from ..network.network import Network, pipes_touching
 from ..network.packing import GRAIN_DENSITY, GRAIN_FRICTION, DiscPacking
 from .apertures import ApertureLaw
@@ -113,6 +113,12 @@ class RadialScenario:
     fixed_port: bool = False  # the inflow domain's grains are held too (a rigid injection tube)
     friction: float = GRAIN_FRICTION  # Coulomb coefficient of the grain contacts during the run
     stiffness_ratio: float = 1.0  # k_s / k_n; k_n is the packing's (the one it was compacted with)
+    # how the boundary grains are held: "fixed" in place (the seed's), or "loaded": each moves
+    # normal to its side under the constant force that held it once the sample settled
+    boundary_hold: str = "fixed"
+    # the axis each boundary grain moves along when loaded (0: x, 1: y); -1 off the boundary and
+    # at the corners (boundary_axes)
+    boundary_axes: np.ndarray | None = None
 
     @property
     def packing_radii(self) -> np.ndarray:
@@ -124,7 +130,7 @@ def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, 
                           aperture_law: ApertureLaw | None = None, sigma: float | None = None,
                           grain_density: float = GRAIN_DENSITY, fixed_port: bool = False,
                           contact_gap: float | None = None, friction: float = GRAIN_FRICTION,
-                          stiffness_ratio: float = 1.0) -> RadialScenario:
+                          stiffness_ratio: float = 1.0, boundary_hold: str = "fixed") -> RadialScenario:
     """Network, flow set-up and coupling parameters of a radial case (no DEM yet, no YADE).
     ``sigma``: the Eq. 24 inlet perimeter Sigma [m] (default :data:`PAPER_SIGMA_OVER_LENGTH` x L).
     ``grain_density``: of the discs [kg/m^3]; it sets how fast the port's grains yield (BENCHMARKS.md).
@@ -132,7 +138,10 @@ def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, 
     whose pipes keep their apertures (decisions.md #68); the seed fixes the boundary grains only.
     ``contact_gap``: pairs closer than this fraction of the smaller radius are pipes (default the case's).
     ``friction``, ``stiffness_ratio``: the contacts' Coulomb coefficient and k_s / k_n (Table 2's
-    0.6 and 1 by default); k_n is the packing's own, so its overlaps give back its confining stress."""
+    0.6 and 1 by default); k_n is the packing's own, so its overlaps give back its confining stress.
+    ``boundary_hold``: "fixed" (the seed's) or "loaded" (see :class:`RadialScenario`; decisions.md #86)."""
+    if boundary_hold not in BOUNDARY_HOLDS:
+        raise ValueError(f"boundary_hold must be one of {BOUNDARY_HOLDS}, not {boundary_hold!r}")
     pk = packing or DiscPacking.load(default_huang_packing_path())
     if contact_gap is not None:
         case = replace(case, contact_gap=contact_gap)
@@ -149,13 +158,27 @@ def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, 
     # "all boundary grains are fixed, imitating the sealed cell edges" (digest §11.2): the grains
     # that touched a compaction wall and every grain on the contact graph's hull. A hull grain
     # left free has fluid on one side only and nothing outside it: it is pushed out of the cell
-    fixed = hull_grains(net)
+    boundary = hull_grains(net)
     if len(pk.fixed):
-        fixed |= pk.fixed
+        boundary |= pk.fixed
+    fixed = boundary.copy()  # held while the sample settles, whatever boundary_hold says
     if fixed_port:
         fixed[port_grains(net)] = True
+    axes = boundary_axes(pk.centres, pk.box, boundary, 2.0 * float(pk.radii.max()))
     return RadialScenario(case, pk, net, setup, coupling, sigma, length, ca, fixed, grain_density, fixed_port,
-                          friction, stiffness_ratio)
+                          friction, stiffness_ratio, boundary_hold, axes)
+
+
+def boundary_axes(centres: np.ndarray, box, boundary: np.ndarray, corner: float) -> np.ndarray:
+    """The axis each ``boundary`` grain of a box sample moves along when the boundary is loaded:
+    0 (x) near the left and right sides, 1 (y) near the bottom and top, normal to the nearer
+    one; -1 off the boundary and at the corners (within ``corner`` of both a vertical and a
+    horizontal side), where a grain pushed along one side would slide out along the other."""
+    x, y = np.asarray(centres, float).T
+    to_sides = np.c_[np.minimum(x, box[0] - x), np.minimum(y, box[1] - y)]  # nearest vertical, horizontal side
+    axes = np.argmin(to_sides, axis=1)
+    at_corner = to_sides.max(axis=1) < corner
+    return np.where(np.asarray(boundary, bool) & ~at_corner, axes, -1)
 
 
 def port_pipes(net: Network) -> np.ndarray:

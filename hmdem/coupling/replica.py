@@ -21,7 +21,8 @@ agrees to round-off, tests/test_replica.py), the engines of ``hmdem.dem.discs.di
   negative is erased (its shear force is lost); the force on disc 1 is -(F_n + f_s), with
   torques (r - penetration / 2) n x F on both discs (sphericalBodies);
 - ``NewtonIntegrator``: a = F / m, each component damped by 1 - damping sign(a (v + a dt / 2)),
-  then v += a dt, x += v dt (leapfrog), the same for the spin about z; fixed discs stay put.
+  then v += a dt, x += v dt (leapfrog), the same for the spin about z; held degrees of freedom
+  (YADE's blockedDOFs) stay put.
 
 Summation order differs from YADE's, so the two agree to round-off, not bit for bit
 (tests/test_replica.py measures it). Contacts are looked for among pairs closer than a skin
@@ -187,16 +188,16 @@ def _cycles(pos, vel, spin, radii, inverse_mass, inverse_inertia, free, external
             torque[i] += (radii[i] - 0.5 * penetration) * moment
             torque[j] += (radii[j] - 0.5 * penetration) * moment
         for i in range(n):
-            if not free[i]:
-                continue
             for a in range(2):
-                acc = force[i, a] * inverse_mass[i]
-                acc *= 1.0 - damping * _sign(acc * (vel[i, a] + 0.5 * dt * acc))
-                vel[i, a] += dt * acc
-                pos[i, a] += vel[i, a] * dt
-            acc = torque[i] * inverse_inertia[i]
-            acc *= 1.0 - damping * _sign(acc * (spin[i] + 0.5 * dt * acc))
-            spin[i] += dt * acc
+                if free[i, a]:
+                    acc = force[i, a] * inverse_mass[i]
+                    acc *= 1.0 - damping * _sign(acc * (vel[i, a] + 0.5 * dt * acc))
+                    vel[i, a] += dt * acc
+                    pos[i, a] += vel[i, a] * dt
+            if free[i, 2]:
+                acc = torque[i] * inverse_inertia[i]
+                acc *= 1.0 - damping * _sign(acc * (spin[i] + 0.5 * dt * acc))
+                spin[i] += dt * acc
     return cycles
 
 
@@ -204,13 +205,14 @@ class DiscReplica:
     """The disc scene of a ``DiscAssembly`` integrated in numba: the ``GrainModel`` calls the P-V
     iteration makes (model.py), loaded from YADE's carried state with :meth:`load`."""
 
-    def __init__(self, radii: np.ndarray, masses: np.ndarray, fixed: np.ndarray, *, k_n: float, k_s: float,
+    def __init__(self, radii: np.ndarray, masses: np.ndarray, free_dofs: np.ndarray, *, k_n: float, k_s: float,
                  friction: float, damping: float):
+        """``free_dofs``: (n, 3) the x, y and spin about z of each disc that move (a DiscAssembly's)."""
         self.radii = np.asarray(radii, float)
         self.masses_ = np.asarray(masses, float)
         self.inertia = 0.5 * self.masses_ * self.radii**2  # discs (hmdem.dem.discs.add_disc)
-        self.fixed = np.asarray(fixed, bool)
-        self._free = ~self.fixed
+        self.free_dofs = np.asarray(free_dofs, bool).reshape(-1, 3)
+        self.fixed = ~self.free_dofs.any(axis=1)
         self._inverse_mass, self._inverse_inertia = 1.0 / self.masses_, 1.0 / self.inertia
         self.k_n, self.k_s, self.friction, self.damping = float(k_n), float(k_s), float(friction), float(damping)
         # the friction angle goes through atan and back in YADE's FrictMat
@@ -218,13 +220,16 @@ class DiscReplica:
         self.skin = 0.5 * float(self.radii.min())
         self.timestep = 0.0
         self.external = np.zeros((len(self.radii), 2))
+        self.boundary_load = np.zeros((len(self.radii), 2))  # the DiscAssembly's, added to every external force
         self._loaded = None
 
     @classmethod
     def of(cls, grains) -> "DiscReplica":
         """The replica of a ``DiscAssembly``'s discs (its laws' constants; load its state later)."""
-        return cls(grains.radii, grains.masses(), grains.fixed, k_n=grains.k_n, k_s=grains.k_s,
-                   friction=grains.friction, damping=grains.damping)
+        replica = cls(grains.radii, grains.masses(), grains.free_dofs, k_n=grains.k_n, k_s=grains.k_s,
+                      friction=grains.friction, damping=grains.damping)
+        replica.boundary_load = grains.boundary_load.copy()
+        return replica
 
     def load(self, state: CarriedState) -> None:
         """Start from ``state`` (and return to it at every :meth:`restore_state`)."""
@@ -255,14 +260,15 @@ class DiscReplica:
         self.anchor = self.pos.copy()
 
     def set_external_forces(self, forces: np.ndarray) -> None:
-        self.external = np.asarray(forces, float).reshape(-1, 2).copy()
+        self.external = np.asarray(forces, float).reshape(-1, 2) + self.boundary_load
 
     def run(self, cycles: int) -> None:
         left = int(cycles)
         while left > 0:
-            done = _cycles(self.pos, self.vel, self.spin, self.radii, self._inverse_mass, self._inverse_inertia, self._free,
-                           self.external, self.ci, self.cj, self.active, self.normal, self.shear, self.k_n, self.k_s,
-                           self.tan_phi, self.damping, self.timestep, left, self.anchor, 0.5 * self.skin)
+            done = _cycles(self.pos, self.vel, self.spin, self.radii, self._inverse_mass, self._inverse_inertia,
+                           self.free_dofs, self.external, self.ci, self.cj, self.active, self.normal, self.shear,
+                           self.k_n, self.k_s, self.tan_phi, self.damping, self.timestep, left, self.anchor,
+                           0.5 * self.skin)
             left -= done
             if left > 0:
                 pairs = np.column_stack((self.ci, self.cj))[self.active]

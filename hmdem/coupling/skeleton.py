@@ -12,9 +12,9 @@ Here every link is linearised at t^n instead:
 - C: Eq. 8 at the grain positions of t^n (:func:`hmdem.flow.grain_forces.pressure_force_matrix`);
 - the grains: dx = S^-1 dF with S = K + m / (c dt^2), K the stiffness of the contact springs
   (k_n along each contact normal, k_s across it at the contact point, each disc with x, y and
-  rotation; fixed grains held) and m / (c dt^2) the inertia of a grain pushed from rest for dt
-  (c = 1/2 without damping). Short steps are inertia-bound (dx = F dt^2 / 2m), long ones
-  settle on the springs (dx = K^-1 F): the grains of the Huang sample ring at ~0.5 us.
+  rotation; held degrees of freedom left out) and m / (c dt^2) the inertia of a grain pushed
+  from rest for dt (c = 1/2 without damping). Short steps are inertia-bound (dx = F dt^2 / 2m),
+  long ones settle on the springs (dx = K^-1 F): the grains of the Huang sample ring at ~0.5 us.
   Contacts sliding at the Coulomb limit get no shear spring: on the B1 checkpoint at 2 ms, 263
   of 2,580 contacts slide; with their shear springs the model's response was half the DEM's,
   without them within 14-22 % on three of four probes (BENCHMARKS.md);
@@ -70,14 +70,15 @@ class SkeletonNewton:
     0/1 matrix summing domains onto unknowns (its transpose spreads unknowns to domains, the
     Dirichlet ones at 0); ``force``: C, (2 n_grains, n_domains); ``volume_gradient``: D,
     (n_domains, 2 n_grains); ``stiffness``: K, (3 n_grains, 3 n_grains); ``masses``,
-    ``inertias``: per grain; ``free``: grains the DEM moves; ``inertia_factor``: c.
+    ``inertias``: per grain; ``free``: (n_grains, 3), the x, y and spin of each grain that the DEM
+    moves; ``inertia_factor``: c.
     """
 
     def __init__(self, flow_matrix, to_nodes, force, volume_gradient, stiffness, masses, inertias, free, dt,
                  inertia_factor: float = 0.5):
         n_grains = len(masses)
         dof_mass = np.stack([masses, masses, inertias], axis=1).ravel()
-        dofs = (3 * np.flatnonzero(free)[:, None] + np.arange(3)).ravel()
+        dofs = np.flatnonzero(np.asarray(free, bool).ravel())
         # the force and volume maps act on x and y only: column (x_k, y_k) is dof (3k, 3k + 1)
         xy_dofs = (3 * np.arange(n_grains)[:, None] + np.arange(2)).ravel()
         xy_to_dofs = sp.csr_matrix((np.ones(2 * n_grains), (xy_dofs, np.arange(2 * n_grains))),

@@ -45,8 +45,10 @@ class DiscAssembly:
         O.reset()
         self.radii = np.asarray(radii, float)
         self.ids = add_discs(centres, self.radii, k_n, ks_over_kn, friction, density)
-        self.fixed = np.zeros(len(self.ids), bool) if fixed is None else np.asarray(fixed, bool)
-        for i in np.flatnonzero(self.fixed):
+        fixed = np.zeros(len(self.ids), bool) if fixed is None else np.asarray(fixed, bool)
+        self.free_dofs = np.repeat(~fixed[:, None], 3, axis=1)  # x, y and the spin about z the DEM moves
+        self.boundary_load = np.zeros((len(self.ids), 2))  # constant forces on released discs (release_on_axes)
+        for i in np.flatnonzero(fixed):
             O.bodies[self.ids[i]].state.blockedDOFs = "xyzXYZ"
         # contacts that exist now (touching within round-off) must be detected on the first step
         O.engines = disc_engines(walls=False, damping=damping, detection_factor=1.0 + 1e-6)
@@ -58,6 +60,11 @@ class DiscAssembly:
         self._grain_of_body = np.full(int(ids.max()) + 1 if len(ids) else 0, -1, int)  # body id -> grain, -1: none
         self._grain_of_body[ids] = np.arange(len(ids))
         self._masses = np.array([O.bodies[i].state.mass for i in self.ids])  # fixed at creation
+
+    @property
+    def fixed(self) -> np.ndarray:
+        """Discs held in place (none of their degrees of freedom move)."""
+        return ~self.free_dofs.any(axis=1)
 
     @property
     def timestep(self) -> float:
@@ -118,11 +125,35 @@ class DiscAssembly:
         return np.array([[bodies[i].state.vel[0], bodies[i].state.vel[1]] for i in self.ids])
 
     def set_external_forces(self, forces: np.ndarray) -> None:
-        """Permanent forces (n, 2) [N per m of depth], kept until replaced (fluid pressure, Eq. 8)."""
+        """Permanent forces (n, 2) [N per m of depth], kept until replaced (fluid pressure, Eq. 8),
+        on top of the :attr:`boundary_load` (:meth:`release_on_axes`)."""
         set_force = self._O.forces.setPermF
         # plain tuples convert to YADE's Vector3 in C++: 0.5 ms for 1,395 discs, 3.2 ms via Vector3
-        for i, (fx, fy) in zip(self.ids, np.asarray(forces, float).tolist()):
+        total = np.asarray(forces, float).reshape(-1, 2) + self.boundary_load
+        for i, (fx, fy) in zip(self.ids, total.tolist()):
             set_force(i, (fx, fy, 0.0))
+
+    def contact_force_sums(self) -> np.ndarray:
+        """Net force (n, 2) [N per m] the contacts exerted on each disc at the last DEM step (held
+        discs included: YADE sums their contacts too)."""
+        force = self._O.forces.f
+        return np.array([(f[0], f[1]) for f in (force(i, True) for i in self.ids)], float).reshape(-1, 2)
+
+    def release_on_axes(self, axes: np.ndarray) -> None:
+        """Let each held disc with ``axes[i]`` 0 (x) or 1 (y) move along that axis and spin, under
+        a constant force along it: the component that held it at the last step (minus its
+        contacts' net force), so that it stays put until the discs inside push harder, a piston
+        at the stress it was held at. Discs with -1 are left as they are. Call it with no
+        external forces set; the load is kept in :attr:`boundary_load` and added to them."""
+        axes = np.where(self.fixed, np.asarray(axes, int), -1)
+        released = np.flatnonzero(axes >= 0)
+        reaction = -self.contact_force_sums()
+        self.boundary_load[released, axes[released]] = reaction[released, axes[released]]
+        bodies = self._O.bodies
+        for i in released:
+            bodies[self.ids[i]].state.blockedDOFs = "zXY" + "yx"[axes[i]]  # the other axis stays held
+            self.free_dofs[i] = (axes[i] == 0, axes[i] == 1, True)
+        self.set_external_forces(np.zeros((len(self.ids), 2)))
 
     def save_state(self) -> None:
         """Keep what the DEM carries from one cycle to the next (:meth:`restore_state` returns to

@@ -133,6 +133,11 @@ def build_contact_network(centres: np.ndarray, radii: np.ndarray, contacts: np.n
     )
 
 
+# how a coupled run holds the hull grains: in place (seed 004's sealed cell edges), or free
+# under the constant force that held them at the start (hmdem.dem.runs.load_boundary)
+BOUNDARY_HOLDS = ("fixed", "loaded")
+
+
 def hull_grains(net: Network) -> np.ndarray:
     """Mask of the grains on the outer boundary of the contact graph: both grains of every contact
     that borders the outer face (the sample's boundary grains)."""
