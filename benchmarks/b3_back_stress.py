@@ -11,7 +11,7 @@ a viscous invaded zone (BENCHMARKS.md, "Where B3's injected volume goes"), again
 invaded domains' starting area (its slope given per unit ln R, R the zone's equivalent radius).
 M is compared with the sample's biaxial E (``python -m hmdem.calibrate biaxial``).
 ``--frames`` prints each snapshot, with the sample's area: a run with ``--boundary loaded``
-(decisions #86) has no fixed hull, its dry domains can grow and the fit does not apply; its
+(decisions #86) has no fixed hull, its dry domains can grow, and its row gives no fit; its
 frames still read. A second or two per directory.
 """
 import argparse
@@ -66,7 +66,8 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|---|---|---|")
     for run in args.runs:
         r = frames(run)
-        stiffness = tomllib.loads((run / "config.toml").read_text())["dem"]["contact_stiffness_n_per_m"]
+        dem = tomllib.loads((run / "config.toml").read_text())["dem"]
+        stiffness = dem["contact_stiffness_n_per_m"]
         after_peak = r[:, 0] > 5e-6  # the early peak is the port's filling, in the first few us
         trough = int(np.argmin(np.where(after_peak, r[:, 1], np.inf)))
         t, p, strain, invaded = r[trough:, :4].T
@@ -76,6 +77,10 @@ def main() -> None:
             for row in r:
                 print(f"  {row[0] * 1e6:7.1f} us  p_in {row[1] / 1e6:6.2f} MPa  dry compaction {row[2]:6.2%}  "
                       f"invaded {row[3] * 1e6:.4f} mm²  sample area {row[4]:+.2%}  floored {row[5]:.0f}")
+        if dem.get("boundary_hold", "fixed") != "fixed":
+            print(f"| {run} | {stiffness:.3g} | {r[-1, 0]:.3g} | boundary {dem['boundary_hold']}: no fixed hull, "
+                  "no fit |||||||", flush=True)
+            continue
         print(f"| {run} | {stiffness:.3g} | {r[-1, 0]:.3g} | {p[0] / 1e6:.2f} at "
               f"{t[0] * 1e6:.0f} | {p[-1] / 1e6:.2f} | {strain[-1]:.2%} | {p0 / 1e6:.2f} | {modulus / 1e6:.1f} | "
               f"{r2:.3f} | {r2_log:.3f}, {2 * per_ln_area / 1e6:.2f} |", flush=True)  # ln area = 2 ln R

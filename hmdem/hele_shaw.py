@@ -77,9 +77,9 @@ def build_parser() -> argparse.ArgumentParser:
                           "pipes keep their apertures (default: only the boundary grains are fixed; decisions #68)")
     rad.add_argument("--boundary", choices=BOUNDARY_HOLDS, default="fixed",
                      help="fixed: the boundary grains are held in place, the seed's sealed cell edges (default); "
-                          "loaded: each moves along the normal of its side under the constant force that held it "
-                          "once the sample settled (corner grains stay held), a stress-controlled boundary at the "
-                          "sample's confining stress (decisions #86)")
+                          "loaded: each moves along the normal of its side, and spins, under the constant inward "
+                          "force that held it once the sample settled, a stress-controlled boundary at the sample's "
+                          "confining stress (corner grains and those the hold did not push stay held; decisions #86)")
     rad.add_argument("--contact-gap", type=contact_gap_fraction,
                      help="grain pairs closer than this fraction of the smaller radius are pipes, starting "
                           f"detached with the Eq. 14 aperture (default {NEAR_CONTACT_GAP:g}, as for the Lenormand "

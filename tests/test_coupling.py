@@ -326,20 +326,27 @@ def test_fixed_port_holds_the_inflow_domains_grains_as_well():
 
 
 def test_a_loaded_boundary_moves_each_grain_normal_to_its_side():
-    # --boundary loaded (decisions #86): a grain near the left or right side moves along x, near
-    # the bottom or top along y; interior grains and corner grains (within the corner distance
-    # of two sides) get -1 (the corners stay held)
-    from hmdem.coupling.radial import RADIAL_CASES, boundary_axes, build_radial_scenario
+    # --boundary loaded (decisions #86): a grain near a side moves along that side's inward
+    # normal; interior grains and corner grains (within the corner distance of a vertical and a
+    # horizontal side) get none (the corners stay held)
+    from hmdem.coupling.radial import RADIAL_CASES, boundary_normals, build_radial_scenario
 
     box = (1.0, 2.0)
     centres = np.array([[0.05, 1.0], [0.97, 0.6], [0.5, 0.02], [0.4, 1.99], [0.05, 0.08], [0.96, 1.95],
                         [0.5, 1.0], [0.05, 0.5]])
     boundary = np.array([True] * 6 + [False, True])
-    assert boundary_axes(centres, box, boundary, corner=0.1).tolist() == [0, 0, 1, 1, -1, -1, -1, 0]
+    expected = [[1, 0], [-1, 0], [0, 1], [0, -1], [0, 0], [0, 0], [0, 0], [1, 0]]
+    assert boundary_normals(centres, box, boundary, corner=0.1).tolist() == expected
     sc = build_radial_scenario(RADIAL_CASES["B3"], boundary_hold="loaded")
-    axes = sc.boundary_axes
-    assert sc.boundary_hold == "loaded" and np.all((axes >= 0) <= sc.fixed)  # only boundary grains move
-    assert 0 < np.sum(sc.fixed & (axes < 0)) <= 8  # a few corner grains, at most two per corner
+    normals, pk = sc.boundary_normals, sc.packing
+    moving = normals.any(axis=1)
+    assert sc.boundary_hold == "loaded" and np.all(moving <= sc.fixed)  # only boundary grains move
+    assert np.all(np.sum(normals * (pk.centres - 0.5 * np.asarray(pk.box)), axis=1) <= 0.0)  # inward
+    corners = sc.fixed & ~moving
+    assert corners.any()
+    x, y = pk.centres[corners].T
+    diameter = 2.0 * pk.radii.max()
+    assert np.all(np.minimum(x, pk.box[0] - x) < diameter) and np.all(np.minimum(y, pk.box[1] - y) < diameter)
     with pytest.raises(ValueError, match="boundary_hold"):
         build_radial_scenario(RADIAL_CASES["B3"], boundary_hold="free")
 

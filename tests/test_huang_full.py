@@ -182,7 +182,7 @@ def test_b3_fractures_conduct_far_better_than_their_sides(huang):
                    "compaction --seed 2's packing has the paper's early peak (9.65 MPa) and still rises 2.2x over "
                    "the last 80 %; only held port grains are flat, at 32-35 MPa (BENCHMARKS.md, decisions #68). "
                    "Boundary grains under a constant load instead of fixed (--boundary loaded, not the seed's) "
-                   "turn the rise into a fall to 0.17 MPa, near the confining stress (decisions #86)")
+                   "turn the rise into a fall towards the 0.14 MPa confining stress (decisions #86)")
 def test_b3_early_peak_then_decline(huang):
     p = pressure_on_grid(huang("B3")[1])
     # H4: early peak, then decline to a plateau: the peak in the first half of the run and the

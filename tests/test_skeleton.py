@@ -91,8 +91,10 @@ def test_volume_gradient_is_the_derivative_of_the_volumes(packing_network):
     assert np.abs(dv - predicted).max() <= 1e-6 * np.abs(dv).max()
 
 
-def test_newton_step_solves_the_linearised_map(packing_network):
-    # (I - J) dp = r with J = -A^-1 D S^-1 C / dt written out densely on the unknown domains
+@pytest.mark.parametrize("pistons", [False, True])
+def test_newton_step_solves_the_linearised_map(packing_network, pistons):
+    # (I - J) dp = r with J = -A^-1 D S^-1 C / dt written out densely on the unknown domains.
+    # With pistons, some held grains move along x or y only (--boundary loaded, decisions #86)
     pk, net = packing_network
     n_dom = net.n_domains
     outlet = np.arange(n_dom)[-5:]
@@ -109,15 +111,18 @@ def test_newton_step_solves_the_linearised_map(packing_network):
     storage = system.to_nodes(net.domain_volume / 2e9 / dt)
     flow = system.matrix(storage, rng.uniform(1e-12, 1e-11, keep.sum()))
     masses = 2650 * np.pi * pk.radii**2
-    free = np.ones(len(masses), bool)
+    free = np.ones((len(masses), 3), bool)  # x, y, spin
     free[:20] = False
+    if pistons:
+        free[:10] = (True, False, True)
+        free[10:16] = (False, True, True)
     force = pressure_force_matrix(net, pk.radii, pk.centres)
     gradient = DomainGeometry(net).volume_gradient(pk.centres)
     stiffness = skeleton_stiffness(pk.centres, pk.radii, pk.contacts, K_N, K_N)
     newton = SkeletonNewton(flow, system.to_nodes_matrix, force, gradient, stiffness, masses,
-                            0.5 * masses * pk.radii**2, np.repeat(free[:, None], 3, axis=1), dt)
+                            0.5 * masses * pk.radii**2, free, dt)
     # the same operators, dense
-    dofs = (3 * np.flatnonzero(free)[:, None] + np.arange(3)).ravel()
+    dofs = np.flatnonzero(free.ravel())
     s = (stiffness + sp.diags(np.c_[masses, masses, 0.5 * masses * pk.radii**2].ravel() / (0.5 * dt * dt)))
     s = s.toarray()[np.ix_(dofs, dofs)]
     xy = np.zeros((3 * len(masses), 2 * len(masses)))

@@ -125,7 +125,10 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None) -> 
     config = {"coupling": {k: v for k, v in vars(sc.coupling).items() if k != "aperture_law"},
               "aperture_law": vars(sc.coupling.aperture_law),
               "dem": {"timestep_s": grains.timestep, "stable_timestep_s": sc.coupling.stable_dem_step,
-                      "n_grains": len(grains.radii), "n_fixed": int(np.sum(sc.fixed)), "threads": grains.threads,
+                      "n_grains": len(grains.radii), "n_fixed": int(np.sum(grains.fixed)),
+                      # boundary grains released along one axis (--boundary loaded)
+                      "n_pistons": int(np.sum(~grains.fixed & ~grains.free_dofs.all(axis=1))),
+                      "threads": grains.threads,
                       "damping": grains.damping, "grain_density_kg_m3": sc.grain_density,
                       "contact_stiffness_n_per_m": grains.k_n, "stiffness_ratio": grains.k_s / grains.k_n,
                       "friction": grains.friction, "fixed_port": sc.fixed_port,

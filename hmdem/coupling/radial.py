@@ -116,9 +116,9 @@ class RadialScenario:
     # how the boundary grains are held: "fixed" in place (the seed's), or "loaded": each moves
     # normal to its side under the constant force that held it once the sample settled
     boundary_hold: str = "fixed"
-    # the axis each boundary grain moves along when loaded (0: x, 1: y); -1 off the boundary and
-    # at the corners (boundary_axes)
-    boundary_axes: np.ndarray | None = None
+    # (n, 2) the inward normal of each boundary grain's side, along which it moves when loaded;
+    # zero off the boundary and at the corners (boundary_normals)
+    boundary_normals: np.ndarray | None = None
 
     @property
     def packing_radii(self) -> np.ndarray:
@@ -164,21 +164,23 @@ def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, 
     fixed = boundary.copy()  # held while the sample settles, whatever boundary_hold says
     if fixed_port:
         fixed[port_grains(net)] = True
-    axes = boundary_axes(pk.centres, pk.box, boundary, 2.0 * float(pk.radii.max()))
+    normals = boundary_normals(pk.centres, pk.box, boundary, 2.0 * float(pk.radii.max()))
     return RadialScenario(case, pk, net, setup, coupling, sigma, length, ca, fixed, grain_density, fixed_port,
-                          friction, stiffness_ratio, boundary_hold, axes)
+                          friction, stiffness_ratio, boundary_hold, normals)
 
 
-def boundary_axes(centres: np.ndarray, box, boundary: np.ndarray, corner: float) -> np.ndarray:
-    """The axis each ``boundary`` grain of a box sample moves along when the boundary is loaded:
-    0 (x) near the left and right sides, 1 (y) near the bottom and top, normal to the nearer
-    one; -1 off the boundary and at the corners (within ``corner`` of both a vertical and a
-    horizontal side), where a grain pushed along one side would slide out along the other."""
+def boundary_normals(centres: np.ndarray, box, boundary: np.ndarray, corner: float) -> np.ndarray:
+    """Inward unit normals (n, 2) of the side nearest each ``boundary`` grain of a box sample
+    [0, W] x [0, H]: (1, 0) at the left side, (-1, 0) at the right, (0, 1) at the bottom, (0, -1)
+    at the top. Zero off the boundary and at the corners (within ``corner`` of both a vertical
+    and a horizontal side), where a grain pushed along one side would slide out along the other."""
     x, y = np.asarray(centres, float).T
-    to_sides = np.c_[np.minimum(x, box[0] - x), np.minimum(y, box[1] - y)]  # nearest vertical, horizontal side
-    axes = np.argmin(to_sides, axis=1)
-    at_corner = to_sides.max(axis=1) < corner
-    return np.where(np.asarray(boundary, bool) & ~at_corner, axes, -1)
+    gaps = np.c_[x, box[0] - x, y, box[1] - y]  # to the left, right, bottom and top sides
+    inward = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+    normals = inward[np.argmin(gaps, axis=1)]
+    at_corner = np.maximum(gaps[:, :2].min(axis=1), gaps[:, 2:].min(axis=1)) < corner
+    normals[~np.asarray(boundary, bool) | at_corner] = 0.0
+    return normals
 
 
 def port_pipes(net: Network) -> np.ndarray:

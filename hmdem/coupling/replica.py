@@ -211,17 +211,21 @@ class DiscReplica:
         self.radii = np.asarray(radii, float)
         self.masses_ = np.asarray(masses, float)
         self.inertia = 0.5 * self.masses_ * self.radii**2  # discs (hmdem.dem.discs.add_disc)
-        self.free_dofs = np.asarray(free_dofs, bool).reshape(-1, 3)
-        self.fixed = ~self.free_dofs.any(axis=1)
+        self.free_dofs = np.array(free_dofs, bool).reshape(len(self.radii), 3)  # a copy
         self._inverse_mass, self._inverse_inertia = 1.0 / self.masses_, 1.0 / self.inertia
         self.k_n, self.k_s, self.friction, self.damping = float(k_n), float(k_s), float(friction), float(damping)
         # the friction angle goes through atan and back in YADE's FrictMat
         self.tan_phi = math.tan(math.atan(self.friction))
         self.skin = 0.5 * float(self.radii.min())
         self.timestep = 0.0
-        self.external = np.zeros((len(self.radii), 2))
         self.boundary_load = np.zeros((len(self.radii), 2))  # the DiscAssembly's, added to every external force
+        self.external = self.boundary_load.copy()
         self._loaded = None
+
+    @property
+    def fixed(self) -> np.ndarray:
+        """Discs held in place (none of their degrees of freedom move)."""
+        return ~self.free_dofs.any(axis=1)
 
     @classmethod
     def of(cls, grains) -> "DiscReplica":
@@ -229,6 +233,7 @@ class DiscReplica:
         replica = cls(grains.radii, grains.masses(), grains.free_dofs, k_n=grains.k_n, k_s=grains.k_s,
                       friction=grains.friction, damping=grains.damping)
         replica.boundary_load = grains.boundary_load.copy()
+        replica.external = replica.boundary_load.copy()
         return replica
 
     def load(self, state: CarriedState) -> None:

@@ -78,7 +78,7 @@ class SkeletonNewton:
                  inertia_factor: float = 0.5):
         n_grains = len(masses)
         dof_mass = np.stack([masses, masses, inertias], axis=1).ravel()
-        dofs = np.flatnonzero(np.asarray(free, bool).ravel())
+        dofs = np.flatnonzero(np.asarray(free, bool).reshape(n_grains, 3))
         # the force and volume maps act on x and y only: column (x_k, y_k) is dof (3k, 3k + 1)
         xy_dofs = (3 * np.arange(n_grains)[:, None] + np.arange(2)).ravel()
         xy_to_dofs = sp.csr_matrix((np.ones(2 * n_grains), (xy_dofs, np.arange(2 * n_grains))),

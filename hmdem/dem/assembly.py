@@ -47,7 +47,8 @@ class DiscAssembly:
         self.ids = add_discs(centres, self.radii, k_n, ks_over_kn, friction, density)
         fixed = np.zeros(len(self.ids), bool) if fixed is None else np.asarray(fixed, bool)
         self.free_dofs = np.repeat(~fixed[:, None], 3, axis=1)  # x, y and the spin about z the DEM moves
-        self.boundary_load = np.zeros((len(self.ids), 2))  # constant forces on released discs (release_on_axes)
+        self.boundary_load = np.zeros((len(self.ids), 2))  # constant forces on released discs (release_along)
+        self._external = np.zeros((len(self.ids), 2))  # the permanent forces set last (set_external_forces)
         for i in np.flatnonzero(fixed):
             O.bodies[self.ids[i]].state.blockedDOFs = "xyzXYZ"
         # contacts that exist now (touching within round-off) must be detected on the first step
@@ -126,34 +127,40 @@ class DiscAssembly:
 
     def set_external_forces(self, forces: np.ndarray) -> None:
         """Permanent forces (n, 2) [N per m of depth], kept until replaced (fluid pressure, Eq. 8),
-        on top of the :attr:`boundary_load` (:meth:`release_on_axes`)."""
+        on top of the :attr:`boundary_load` (:meth:`release_along`)."""
+        self._external = np.asarray(forces, float).reshape(-1, 2).copy()
         set_force = self._O.forces.setPermF
         # plain tuples convert to YADE's Vector3 in C++: 0.5 ms for 1,395 discs, 3.2 ms via Vector3
-        total = np.asarray(forces, float).reshape(-1, 2) + self.boundary_load
-        for i, (fx, fy) in zip(self.ids, total.tolist()):
+        for i, (fx, fy) in zip(self.ids, (self._external + self.boundary_load).tolist()):
             set_force(i, (fx, fy, 0.0))
 
     def contact_force_sums(self) -> np.ndarray:
         """Net force (n, 2) [N per m] the contacts exerted on each disc at the last DEM step (held
-        discs included: YADE sums their contacts too)."""
+        discs included: YADE sums their contacts too): YADE's total less the permanent forces as
+        they are set now, so read it before setting others than the last step ran with."""
         force = self._O.forces.f
-        return np.array([(f[0], f[1]) for f in (force(i, True) for i in self.ids)], float).reshape(-1, 2)
+        total = np.array([(f[0], f[1]) for f in (force(i, True) for i in self.ids)], float).reshape(-1, 2)
+        return total - self._external - self.boundary_load
 
-    def release_on_axes(self, axes: np.ndarray) -> None:
-        """Let each held disc with ``axes[i]`` 0 (x) or 1 (y) move along that axis and spin, under
-        a constant force along it: the component that held it at the last step (minus its
-        contacts' net force), so that it stays put until the discs inside push harder, a piston
-        at the stress it was held at. Discs with -1 are left as they are. Call it with no
-        external forces set; the load is kept in :attr:`boundary_load` and added to them."""
-        axes = np.where(self.fixed, np.asarray(axes, int), -1)
-        released = np.flatnonzero(axes >= 0)
-        reaction = -self.contact_force_sums()
-        self.boundary_load[released, axes[released]] = reaction[released, axes[released]]
+    def release_along(self, normals: np.ndarray) -> np.ndarray:
+        """Let held discs move along their ``normals`` (n, 2) (unit x or y vectors pointing into
+        the sample; zero rows: left as they are) and spin, each under a constant force along its
+        normal: the inward push that held it at the last step (minus its contacts' net force
+        along it). A disc stays put until the discs inside push harder: a piston at the stress
+        it was held at. Discs the hold did not push inward (sheltered behind others) stay held:
+        with no load, any outward force would carry them off. The mask of released discs."""
+        normals = np.asarray(normals, float).reshape(-1, 2)
+        push = np.sum(-self.contact_force_sums() * normals, axis=1)
+        released = self.fixed & normals.any(axis=1) & (push > 0.0)
+        self.boundary_load[released] = push[released, None] * normals[released]
         bodies = self._O.bodies
-        for i in released:
-            bodies[self.ids[i]].state.blockedDOFs = "zXY" + "yx"[axes[i]]  # the other axis stays held
-            self.free_dofs[i] = (axes[i] == 0, axes[i] == 1, True)
-        self.set_external_forces(np.zeros((len(self.ids), 2)))
+        for i in np.flatnonzero(released):
+            along_x = normals[i, 0] != 0.0
+            # discs keep z and the out-of-plane spins held; the axis across the normal is held too
+            bodies[self.ids[i]].state.blockedDOFs = "zXY" + ("y" if along_x else "x")
+            self.free_dofs[i] = (along_x, not along_x, True)
+        self.set_external_forces(self._external)  # the load goes in beside what was set
+        return released
 
     def save_state(self) -> None:
         """Keep what the DEM carries from one cycle to the next (:meth:`restore_state` returns to

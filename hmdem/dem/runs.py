@@ -24,7 +24,7 @@ def start_grains(sc, threads: int | None = None) -> DiscAssembly:
     (at the default damping 0.7, then the run's ``sc.coupling.dem_damping``); sets the stable DEM
     step. ``threads``: YADE's OpenMP threads (None: as the process was started, else 1). With
     ``sc.boundary_hold == "loaded"`` the boundary grains are released after settling, each along
-    the normal of its side under the constant force that held it (``sc.boundary_axes``)."""
+    the normal of its side under the constant force that held it (``sc.boundary_normals``)."""
     pk = sc.packing
     grains = DiscAssembly(pk.centres, pk.radii, k_n=pk.contact_stiffness, ks_over_kn=sc.stiffness_ratio,
                           friction=sc.friction, fixed=sc.fixed, density=sc.grain_density, threads=threads)
@@ -32,7 +32,7 @@ def start_grains(sc, threads: int | None = None) -> DiscAssembly:
     if sc.boundary_hold == "loaded":
         # each boundary grain a piston at the stress that held it (decisions.md #86); their
         # spins were held too, so they settle again
-        grains.release_on_axes(sc.boundary_axes)
+        grains.release_along(sc.boundary_normals)
         grains.run(SETTLE_CYCLES)
     grains.damping = sc.coupling.dem_damping
     sc.coupling.stable_dem_step = grains.timestep = grains.stable_timestep()

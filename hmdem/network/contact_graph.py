@@ -133,8 +133,9 @@ def build_contact_network(centres: np.ndarray, radii: np.ndarray, contacts: np.n
     )
 
 
-# how a coupled run holds the hull grains: in place (seed 004's sealed cell edges), or free
-# under the constant force that held them at the start (hmdem.dem.runs.load_boundary)
+# how a coupled run holds the hull grains: in place (seed 004's sealed cell edges), or as pistons
+# under the constant force that held them at the start (DiscAssembly.release_along); here, not in
+# hmdem.coupling.radial, so that the command line's parser does not import the coupling
 BOUNDARY_HOLDS = ("fixed", "loaded")
 
 
