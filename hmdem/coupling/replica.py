@@ -206,8 +206,9 @@ class DiscReplica:
     iteration makes (model.py), loaded from YADE's carried state with :meth:`load`."""
 
     def __init__(self, radii: np.ndarray, masses: np.ndarray, free_dofs: np.ndarray, *, k_n: float, k_s: float,
-                 friction: float, damping: float):
-        """``free_dofs``: (n, 3) the x, y and spin about z of each disc that move (a DiscAssembly's)."""
+                 friction: float, damping: float, boundary_load: np.ndarray | None = None):
+        """``free_dofs``: (n, 3) the x, y and spin about z of each disc that move; ``boundary_load``:
+        (n, 2) constant forces added to every external force (a DiscAssembly's, both copied)."""
         self.radii = np.asarray(radii, float)
         self.masses_ = np.asarray(masses, float)
         self.inertia = 0.5 * self.masses_ * self.radii**2  # discs (hmdem.dem.discs.add_disc)
@@ -218,7 +219,8 @@ class DiscReplica:
         self.tan_phi = math.tan(math.atan(self.friction))
         self.skin = 0.5 * float(self.radii.min())
         self.timestep = 0.0
-        self.boundary_load = np.zeros((len(self.radii), 2))  # the DiscAssembly's, added to every external force
+        loads = np.zeros((len(self.radii), 2)) if boundary_load is None else boundary_load
+        self.boundary_load = np.array(loads, float).reshape(len(self.radii), 2)
         self.external = self.boundary_load.copy()
         self._loaded = None
 
@@ -230,11 +232,8 @@ class DiscReplica:
     @classmethod
     def of(cls, grains) -> "DiscReplica":
         """The replica of a ``DiscAssembly``'s discs (its laws' constants; load its state later)."""
-        replica = cls(grains.radii, grains.masses(), grains.free_dofs, k_n=grains.k_n, k_s=grains.k_s,
-                      friction=grains.friction, damping=grains.damping)
-        replica.boundary_load = grains.boundary_load.copy()
-        replica.external = replica.boundary_load.copy()
-        return replica
+        return cls(grains.radii, grains.masses(), grains.free_dofs, k_n=grains.k_n, k_s=grains.k_s,
+                   friction=grains.friction, damping=grains.damping, boundary_load=grains.boundary_load)
 
     def load(self, state: CarriedState) -> None:
         """Start from ``state`` (and return to it at every :meth:`restore_state`)."""
