@@ -394,6 +394,12 @@ def test_radial_run_directory_contract(tmp_path):
     assert summary["n_opened_reached_by_fluid"] == reached.sum() > 0
     assert summary["n_opened_before_fluid"] == np.sum(reached & (opened_time < entered.min(axis=1)))
     assert summary["n_opened_in_invaded_zone"] == np.sum(opened & np.isfinite(filled).all(axis=1))
+    # the fluid's way in through the opened contacts, from the same arrays (decisions #87)
+    from hmdem.coupling.micromechanics import fracture_guidance
+
+    guidance = fracture_guidance(opened_time, pipe_domains, fractures["pore_wetted_time"],
+                                 np.load(out / "state.npz")["invasion_time"], np.load(out / "network.npz")["inlet_domains"])
+    assert {k: summary[k] for k in guidance} == pytest.approx(guidance, nan_ok=True)
     assert fractures["positions"].shape == (1395, 2)
     # each contact's force after settling [N per m], positive for the contacts the sample starts
     # with; they carry the servo's 0.14 MPa: by the virial theorem sum f (r1 + r2) over the

@@ -157,6 +157,20 @@ def test_b3_fractures_open_before_the_fluid_comes(huang):
     assert s["n_opened_before_fluid"] > s["n_opened_reached_by_fluid"] / 2 > 0
 
 
+def test_b3_fluid_goes_in_through_the_fractures(huang):
+    # H4 from the fluid's side (decisions #87): B3's fractures guide "the fluid to penetrate the
+    # fracturing domains"; A3's "remain within the fluid infiltration zone, not altering the
+    # circular flow front". Most of B3's filled pores were fed through a contact that had opened
+    # before the fluid came, and the pipes it went in through had opened more often than the
+    # front's pipes at breakthrough, which had longer to open; most of A3's were not. Measured
+    # 2026-11-30 (benchmarks/invasion_paths.py): B3 65-68 % of the filled pores, feeding pipes
+    # 52-57 % against 31-41 % of the front's, over six runs (shipped, seed 1, one-way, heavier,
+    # softer and stiffer grains); A3 19 %, 13 % against 5 %
+    b3, a3 = huang("B3")[0], huang("A3")[0]
+    assert b3["fracture_fed_fraction"] > 0.5 > a3["fracture_fed_fraction"]
+    assert b3["feeding_pipes_opened_fraction"] > b3["front_pipes_opened_fraction"]
+
+
 def test_b3_fractures_conduct_far_better_than_their_sides(huang):
     # H8: "the lowest pipe flow resistance inside the fracturing zone is only 2.5 GPa s/m2, merely
     # 2 % of the lowest resistance at the sides" (seed 004 §4.2, Fig. 16e; digest bound < 0.1).

@@ -110,6 +110,53 @@ def chronology_counts(masks: dict, opened: np.ndarray, opened_time: np.ndarray) 
     }
 
 
+def filling_order(invasion_time: np.ndarray, inlet: np.ndarray, pipe_domains: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each domain's filling time (``invasion_time``, inf: never filled) with the port's set to
+    -1, so that it counts as filled first, plus one entry, never filled, at which the returned
+    copy of ``pipe_domains`` points its ends on the outer face (OUTSIDE)."""
+    t = np.append(invasion_time, np.inf)
+    t[inlet] = -1.0
+    return t, np.where(pipe_domains == OUTSIDE, len(invasion_time), pipe_domains)
+
+
+def feeding_pipes(t: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The pipes whose one domain filled after the other (``filling_order``'s t and ends), and
+    for each that later domain: the fluid could have filled it through the pipe."""
+    a, b = ends.T
+    feeds = np.isfinite(np.maximum(t[a], t[b])) & (t[a] != t[b])
+    return np.flatnonzero(feeds), np.where(t[a] > t[b], a, b)[feeds]
+
+
+def fracture_guidance(opened_time: np.ndarray, pipe_domains: np.ndarray, wetted_time: np.ndarray,
+                      invasion_time: np.ndarray, inlet: np.ndarray) -> dict:
+    """Summary keys on whether the fluid went in through the opened contacts (seed 004 §4.2: B3's
+    pressure "creates fractures before fluid infiltration, guiding the fluid to penetrate the
+    fracturing domains"; decisions #87). A filled domain's feeding pipes join it to neighbours
+    filled earlier, the port counting as filled first:
+    ``fracture_fed_fraction``, of the filled domains (the port left out), those fed through a
+    contact that opened before the fluid first entered the domain;
+    ``feeding_pipes_opened_fraction``, of the feeding pipes, those whose contact had opened by
+    the time their domain filled;
+    ``front_pipes_opened_fraction``, the control: of the pipes on the front at the end (one
+    domain filled, the other not), those opened by then, which had longer to open.
+    Per pipe ``opened_time`` (inf: never opened) and ``pipe_domains`` (m, 2) with OUTSIDE for
+    the outer face; per domain ``wetted_time`` (fluid first entered) and ``invasion_time``
+    (filled, S = 1); ``inlet`` the port's domains. nan where a set is empty."""
+    t, ends = filling_order(invasion_time, inlet, pipe_domains)
+    pipe, fed = feeding_pipes(t, ends)
+    filled = np.flatnonzero(np.isfinite(t[:-1]) & (t[:-1] >= 0.0))
+    guided = np.isin(filled, fed[opened_time[pipe] < wetted_time[fed]])
+    a, b = ends.T
+    front = (np.isfinite(t[a]) != np.isfinite(t[b])) & (pipe_domains != OUTSIDE).all(axis=1)
+
+    def fraction(mask: np.ndarray) -> float:
+        return float(mask.mean()) if mask.size else float("nan")
+
+    return {"fracture_fed_fraction": fraction(guided),
+            "feeding_pipes_opened_fraction": fraction(opened_time[pipe] <= t[fed]),
+            "front_pipes_opened_fraction": fraction(np.isfinite(opened_time[front]))}
+
+
 STEP_ENERGY_KEYS = ("time_s", "step_s", "injection_pressure_pa", "injection_energy_j", "residual_energy_j",
                     "dissipated_fraction")
 

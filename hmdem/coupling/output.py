@@ -13,8 +13,8 @@ from ..plots import plot_force_chains, plot_fracture_chronology
 from ..report import pattern_fractal_dimension, radial_pattern_dimension, write_run
 from ..snapshots import read_series
 from .geometry import contact_gaps
-from .micromechanics import (chronology_counts, energy_partition, fracture_and_side_resistance, fracture_timing,
-                             lowest_path_resistance, pipe_resistance)
+from .micromechanics import (chronology_counts, energy_partition, fracture_and_side_resistance, fracture_guidance,
+                             fracture_timing, lowest_path_resistance, pipe_resistance)
 from .radial import classify_radial_regime, domain_perimeter
 
 GPA = 1e9
@@ -65,6 +65,9 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None) -> 
         "n_open_contacts_at_end": int(model.open_now.sum()),
         "n_detached_contacts": int(model.detached.sum()),
         **chronology,
+        # from the fluid's side: did it go in through the opened contacts (decisions #87)
+        **fracture_guidance(model.opened_time, net.pipe_domains, model.wetted_time, state.invasion_time,
+                            net.inlet_domains),
         "opening_gap_m": model.opening_gap,
         "n_floored_domains": int(model.floored.sum()),
         "n_initial_contacts": int(model.initially_closed.sum()),
