@@ -562,6 +562,23 @@ def test_replica_iteration_keeps_the_outcome_and_every_step_is_yades(reduced_run
     assert cr.dem_cycles < 0.5 * off_model.coupling_record.dem_cycles
 
 
+def test_a_step_kept_unconverged_on_the_replica_is_yades(small_sample):
+    # a step whose iteration runs out of evaluations on the replica, at its last halving, is kept
+    # unconverged; YADE runs it once at the last trial pressures so that the flow state and the
+    # DEM stay in step (before the fix the kept positions were the replica's, 3.5 um away from
+    # YADE's after three such steps; grains of radius 13-21.6 um)
+    sc = build_radial_scenario(RADIAL_CASES["B3"], packing=small_sample)
+    sc.coupling.pv_max_iter, sc.coupling.max_dt_halvings = 1, 0
+    sc.setup.max_steps = 3
+    grains = start_grains(sc)
+    model = CoupledFlowModel(sc.net, sc.setup, grains, sc.coupling)
+    state, rec = model.run()
+    cr = model.coupling_record
+    assert rec.steps == 3 and cr.unconverged_steps > 0 and cr.replica_cycles > 0
+    assert cr.confirmations == 3  # one YADE run per step, converged or not
+    np.testing.assert_array_equal(model.positions, grains.positions())
+
+
 def test_interrupt_inside_yades_cycles_rewinds_yade_itself(small_sample, monkeypatch):
     # Ctrl-C or SIGTERM landing half-way through a YADE run (here the third step's run at the
     # replica's pressures): the run stops with YADE back at the last accepted step, not only the

@@ -464,6 +464,13 @@ class CoupledFlowModel(FlowModel):
                 self._rewind()
                 positions = self.move_grains(p_trial, dt)
                 continue
+            if iteration == c.pv_max_iter and on_replica:
+                # out of iterations on the replica: YADE runs the step once at the last trial
+                # pressures, counted as a confirmation, so that a step kept unconverged is YADE's
+                on_replica, confirming = False, True
+                self._rewind()
+                positions = self.move_grains(p_trial, dt)
+                continue
             if iteration == c.pv_max_iter:
                 break
             if c.pv_rewind:
