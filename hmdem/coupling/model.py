@@ -522,6 +522,7 @@ class CoupledFlowModel(FlowModel):
         # saturation is a volume fraction: the invading volume is kept as the domain deforms
         invading = state.saturation * self.volume
         state.saturation = np.where(state.invaded, 1.0, np.clip(invading / volume, 0.0, 1.0))
+        self._mark_filled(state)  # a partly filled domain squeezed full is filled
         self.volume[:] = volume
         self.reference_volume = volume
         self.volume_change[:] = 0.0

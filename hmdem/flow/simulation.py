@@ -248,6 +248,14 @@ class FlowModel:
                 limiter = "eq18"
         return sol, fill, dt, limiter
 
+    @staticmethod
+    def _mark_filled(state: FlowState) -> None:
+        """Domains whose saturation is within FILL_TOLERANCE of 1 become invaded (S = 1) now."""
+        newly = (state.saturation >= 1.0 - fr.FILL_TOLERANCE) & ~state.invaded
+        state.saturation[newly] = 1.0
+        state.invaded |= newly
+        state.invasion_time[newly] = state.t
+
     def _refine_overfill(self, state, dt, sol, fill, g, orient, pc):
         """Shorten dt until no domain overfills, aiming at the fill time of the first domain to
         fill (seed 004 Eq. 18, iterated; digest U10). If the passes run out, the longest trial that
@@ -389,12 +397,8 @@ class FlowModel:
         state.pressure = sol.pressure
         state.t += dt
         if self.setup.two_phase:
-            s_new = np.clip(state.saturation + dt * fill / self.volume, 0.0, 1.0)
-            newly = (s_new >= 1.0 - fr.FILL_TOLERANCE) & ~state.invaded
-            s_new[newly] = 1.0
-            state.saturation = s_new
-            state.invaded |= newly
-            state.invasion_time[newly] = state.t
+            state.saturation = np.clip(state.saturation + dt * fill / self.volume, 0.0, 1.0)
+            self._mark_filled(state)
         rec.steps += 1
         rec.eq18_steps += limiter == "eq18"
         rec.eq19_steps += limiter == "eq19"
