@@ -400,6 +400,12 @@ def test_radial_run_directory_contract(tmp_path):
     guidance = fracture_guidance(opened_time, pipe_domains, fractures["pore_wetted_time"],
                                  np.load(out / "state.npz")["invasion_time"], np.load(out / "network.npz")["inlet_domains"])
     assert {k: summary[k] for k in guidance} == pytest.approx(guidance, nan_ok=True)
+    # the port's perimeter is the packing's (decisions #21), not the moved grains'
+    net = np.load(out / "network.npz")
+    port_edges = net["pipe_grains"][(net["pipe_domains"] == net["inlet_domains"][0]).any(axis=1)]
+    start = fractures["initial_positions"]
+    assert summary["inlet_domain_perimeter_m"] == pytest.approx(
+        np.linalg.norm(start[port_edges[:, 1]] - start[port_edges[:, 0]], axis=1).sum(), rel=1e-12)
     assert fractures["positions"].shape == (1395, 2)
     # each contact's force after settling [N per m], positive for the contacts the sample starts
     # with; they carry the servo's 0.14 MPa: by the virial theorem sum f (r1 + r2) over the

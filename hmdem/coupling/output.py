@@ -44,6 +44,8 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None) -> 
     d_f = d_box = float("nan")
     if state.invaded.any():
         d_f, d_box = radial_pattern_dimension(sc, state), pattern_fractal_dimension(sc, state)
+    # the packing's own port perimeter (decisions #21), before the network takes the moved grains
+    inlet_perimeter = domain_perimeter(net, int(net.inlet_domains[0]))
     # draw and export the deformed sample
     net.points = positions
     net.domain_centroid = model.geometry.centroids(positions)
@@ -101,7 +103,7 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None) -> 
         "sample_area_strain": float(model.geometry.volumes(positions).sum()
                                     / model.geometry.volumes(initial_positions).sum() - 1.0),
         "sigma_m": sc.sigma,
-        "inlet_domain_perimeter_m": domain_perimeter(net, int(net.inlet_domains[0])),
+        "inlet_domain_perimeter_m": inlet_perimeter,
         "confining_stress_pa": sc.packing.confining_stress,
     }
 
