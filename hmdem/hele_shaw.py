@@ -86,7 +86,8 @@ def build_parser() -> argparse.ArgumentParser:
                           "packing; 0.38 gives about the paper's 3,490 pipes and 141 outflow domains: decisions #73)")
     add_contact_arguments(rad, stiffness=False)  # k_n is the packing's: compaction --contact-stiffness
     rad.add_argument("--dem-cycles", type=positive_int,
-                     help="DEM cycles per flow step (the paper: 2000); default: the stable DEM step")
+                     help="DEM cycles per flow step at least (the paper: 2000), more where the stable DEM "
+                          "step needs them; default: as the stable DEM step needs")
     rad.add_argument("--pv-tol", type=relative_tolerance,
                      help="P-V iteration relative tolerance, of the largest |p| (default 1e-3)")
     rad.add_argument("--pv-test", choices=("every", "inflow"),

@@ -473,6 +473,21 @@ def test_cases_set_their_own_pv_iteration_and_a1_keeps_the_defaults():
     assert all(hasattr(default, name) for case in RADIAL_CASES.values() for name, _ in case.coupling_defaults)
 
 
+@pytest.mark.parametrize("change, message", [({"pv_test": "inlet"}, "pv_test"),
+                                             ({"one_way_volume": "late"}, "one_way_volume"),
+                                             ({"stable_dem_step": 0.0}, "stable_dem_step")])
+def test_coupled_model_refuses_settings_it_would_misread(change, message):
+    # a misspelt P-V test would silently test every domain; with no stable DEM step and no
+    # cycle count the DEM would take the whole flow step in one cycle
+    from hmdem.coupling.model import CoupledFlowModel, CouplingSetup
+
+    coupling = CouplingSetup(stable_dem_step=1e-9)
+    for name, value in change.items():
+        setattr(coupling, name, value)
+    with pytest.raises(ValueError, match=message):
+        CoupledFlowModel(None, None, None, coupling)
+
+
 def test_trapped_pockets_are_the_partly_filled_domains_enclosed_by_invaded_ones():
     from hmdem.coupling.pockets import trapped_pockets
 

@@ -110,7 +110,8 @@ def chronology_counts(masks: dict, opened: np.ndarray, opened_time: np.ndarray) 
     }
 
 
-def filling_order(invasion_time: np.ndarray, inlet: np.ndarray, pipe_domains: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def filling_order(invasion_time: np.ndarray, inlet: np.ndarray,
+                  pipe_domains: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each domain's filling time (``invasion_time``, inf: never filled) with the port's set to
     -1, so that it counts as filled first, plus one entry, never filled, at which the returned
     copy of ``pipe_domains`` points its ends on the outer face (OUTSIDE)."""

@@ -77,7 +77,8 @@ class GrainModel(Protocol):
     damping: float  # local damping of the grains' accelerations
 
     # optional: ``carried_state()`` after ``save_state()`` hands the state to the numba replica
-    # (replica.CarriedState); a model without it iterates in the DEM itself
+    # (replica.CarriedState); a model without it iterates in the DEM itself. ``boundary_load``
+    # (n, 2), the constant forces on loaded boundary grains, is optional too (none without it)
     def positions(self) -> np.ndarray: ...
     def save_state(self) -> None: ...
     def restore_state(self) -> None: ...
@@ -105,8 +106,10 @@ class CouplingSetup:
     # iterations): doubling after every easy step made hard stretches alternate between a
     # converged step and a failed one at twice its size
     pv_easy_steps_to_grow: int = 1
-    dem_cycles_per_step: int | None = None  # fixed count (the paper: 2000); None: stable DEM step
-    stable_dem_step: float = 0.0  # DEM stability step [s], used when dem_cycles_per_step is None
+    # DEM cycles per flow step are at least this many (the paper: 2000) and at least enough that
+    # the DEM step stays under stable_dem_step; None: only the latter
+    dem_cycles_per_step: int | None = None
+    stable_dem_step: float = 0.0  # DEM stability step [s] (start_grains sets it from the grains)
     one_way: bool = False
     # what the one-way variant does with the grains' volume change: "ignored", dV never enters
     # the pressure equation (digest H10's no-dV variant); "lagged", the change of the last
@@ -200,6 +203,10 @@ class CoupledFlowModel(FlowModel):
     def __init__(self, net: Network, setup: FlowSetup, grains: GrainModel, coupling: CouplingSetup):
         if coupling.one_way_volume not in ("ignored", "lagged"):
             raise ValueError(f"one_way_volume must be 'ignored' or 'lagged', not {coupling.one_way_volume!r}")
+        if coupling.pv_test not in ("every", "inflow"):
+            raise ValueError(f"pv_test must be 'every' or 'inflow', not {coupling.pv_test!r}")
+        if coupling.stable_dem_step <= 0.0 and not coupling.dem_cycles_per_step:
+            raise ValueError("stable_dem_step must be > 0 (start_grains sets it) or dem_cycles_per_step given")
         super().__init__(net, setup)
         self.grains, self.coupling = grains, coupling
         self.geometry = DomainGeometry(net)

@@ -152,7 +152,7 @@ def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, 
     length = float(pk.box[0])
     sigma = PAPER_SIGMA_OVER_LENGTH * length if sigma is None else sigma
     ca = case.ca_star if ca_star is None else ca_star
-    rate = rate_from_ca_star(ca, fluids, sigma, length, law.residual_aperture)
+    rate = rate_from_ca_star(ca, fluids, sigma, length, case.mean_aperture)  # ā = a0 (decisions #21)
     setup = FlowSetup(fluids, rate, case.dt)
     coupling = CouplingSetup(aperture_law=law, one_way=one_way, **dict(case.coupling_defaults))
     # "all boundary grains are fixed, imitating the sealed cell edges" (digest §11.2): the grains

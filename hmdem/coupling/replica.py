@@ -224,16 +224,12 @@ class DiscReplica:
         self.external = self.boundary_load.copy()
         self._loaded = None
 
-    @property
-    def fixed(self) -> np.ndarray:
-        """Discs held in place (none of their degrees of freedom move)."""
-        return ~self.free_dofs.any(axis=1)
-
     @classmethod
     def of(cls, grains) -> "DiscReplica":
         """The replica of a ``DiscAssembly``'s discs (its laws' constants; load its state later)."""
         return cls(grains.radii, grains.masses(), grains.free_dofs, k_n=grains.k_n, k_s=grains.k_s,
-                   friction=grains.friction, damping=grains.damping, boundary_load=grains.boundary_load)
+                   friction=grains.friction, damping=grains.damping,
+                   boundary_load=getattr(grains, "boundary_load", None))
 
     def load(self, state: CarriedState) -> None:
         """Start from ``state`` (and return to it at every :meth:`restore_state`)."""

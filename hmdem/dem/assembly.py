@@ -296,7 +296,3 @@ class DiscAssembly:
 
     def masses(self) -> np.ndarray:
         return self._masses.copy()
-
-    def kinetic_energy(self) -> float:
-        """Translational kinetic energy of the grains [J per m of depth]."""
-        return 0.5 * float(np.sum(self.masses() * np.sum(self.velocities() ** 2, axis=1)))

@@ -2,8 +2,9 @@
 
 Discs with radii uniform in [r_min, r_max] are seeded loosely in a box larger than the
 target, grown to size and pushed together by four frictionless walls whose velocity is
-servo-controlled until the mean wall stress (force per wall length, 1 m depth) equals the
-target confining stress. Compaction is frictionless (the usual way to reach a dense state);
+servo-controlled until each wall's stress (force per wall length, 1 m depth) is within the
+tolerance of the target confining stress and the sample is in equilibrium (unbalanced force
+below UNBALANCED_FORCE). Compaction is frictionless (the usual way to reach a dense state);
 the grains get their working friction afterwards. The grains touching a wall at the end are
 the fixed boundary grains of the injection runs (digest §11.2: "all boundary grains are fixed").
 """

@@ -27,7 +27,6 @@ def random_seed_positions(radii: np.ndarray, box, shrink: float, rng) -> np.ndar
     """Random sequential placement of discs of radius shrink * r without overlap."""
     n = len(radii)
     pos = np.empty((n, 2))
-    placed = 0
     cell = 2 * shrink * radii.max()
     grid: dict[tuple[int, int], list[int]] = {}
     for k in range(n):  # set-up only, once per packing
@@ -42,7 +41,6 @@ def random_seed_positions(radii: np.ndarray, box, shrink: float, rng) -> np.ndar
             raise RuntimeError("could not place discs: lower the number of grains or the initial shrink")
         pos[k] = p
         grid.setdefault((ci, cj), []).append(k)
-        placed += 1
     return pos
 
 

@@ -47,7 +47,7 @@ def _triangle_areas(points: np.ndarray, simplices: np.ndarray) -> np.ndarray:
     return 0.5 * np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1]))
 
 
-def build_contact_network(centres: np.ndarray, radii: np.ndarray, contacts: np.ndarray | None = None) -> Network:
+def build_contact_network(centres: np.ndarray, radii: np.ndarray, contacts: np.ndarray) -> Network:
     """Build domains and pipes from disc centres, radii and contact pairs.
 
     ``pipe_domains[:, 0]`` is the face to the left of the directed segment from
@@ -60,8 +60,6 @@ def build_contact_network(centres: np.ndarray, radii: np.ndarray, contacts: np.n
     centres = np.asarray(centres, float)
     radii = np.asarray(radii, float)
     n = len(centres)
-    if contacts is None:
-        contacts = find_contacts(centres, radii)
     contacts = main_component(n, np.sort(np.asarray(contacts, int), axis=1))
     contact_keys = contacts[:, 0].astype(np.int64) * n + contacts[:, 1]
 
