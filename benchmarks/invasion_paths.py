@@ -49,8 +49,8 @@ def starting_centres(net, start: np.ndarray) -> np.ndarray:
     weight = np.abs(signed_triangle_areas(start, triangles))
     centroid = start[triangles].mean(axis=1)
     n = len(net["domain_volume"])
-    total = np.bincount(domain, weight, n)
-    return np.c_[np.bincount(domain, weight * centroid[:, 0], n), np.bincount(domain, weight * centroid[:, 1], n)] / total[:, None]
+    moments = [np.bincount(domain, weight * centroid[:, axis], n) for axis in (0, 1)]
+    return np.c_[moments[0], moments[1]] / np.bincount(domain, weight, n)[:, None]
 
 
 def row(run: Path) -> str:
