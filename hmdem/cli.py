@@ -165,6 +165,17 @@ def yade_script_arguments(script: str, doc: str, argv: list[str]) -> None:
     sys.exit(2)
 
 
+def read_yade_table(script: str, read_params, **defaults) -> None:
+    """``read_params`` (YADE's ``utils.readParamsFromTable``) with ``defaults``, for a script
+    under yade-batch: a column the script does not know, or a value that is not a Python literal
+    (YADE raises NameError for both), is one line on stderr and exit status 2, before a run."""
+    try:
+        read_params(noTableOk=True, **defaults)
+    except NameError as exc:
+        print(f"{script}: table: {exc} (its columns: {', '.join(defaults)}; strings in quotes)", file=sys.stderr)
+        sys.exit(2)
+
+
 def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -> int:
     """Run ``commands[args.command](args)``: a batch system's SIGTERM (or kill) ends it like
     Ctrl-C (exit status :func:`interrupted_status`), an :class:`InputError` is one line on stderr

@@ -111,7 +111,7 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
     setup = {k: v for k, v in asdict(sc.setup).items() if k != "fluids"}
     config = {
         "run": {"command": "python -m hmdem.hele_shaw " + " ".join(argv), "hmdem_version": __version__,
-                "python": platform.python_version(), "case": sc.case.name, "seed": seed},
+                "python": platform.python_version(), "numpy": np.__version__, "case": sc.case.name, "seed": seed},
         "case": {"title": sc.case.title, "geometry": sc.case.geometry, "ca_star": sc.ca_star,
                  "mean_aperture_m": sc.case.mean_aperture, "aperture_spread": sc.case.aperture_spread,
                  "contact_gap": sc.case.contact_gap, "sigma_m": sc.sigma, "length_m": sc.length},

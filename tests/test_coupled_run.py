@@ -330,8 +330,9 @@ def test_yade_batch_runs_the_radial_script(tmp_path):
     script = Path(__file__).resolve().parent.parent / "yade_scripts" / "radial_injection.py"
     table = tmp_path / "short.table"
     # friction: -1 leaves Table 2's 0.6, and 0 (frictionless grains) is a value, not "unset"
-    table.write_text("description case oneWay maxSteps fixedPort grainDensity friction stiffnessRatio boundary\n"
-                     "two_way 'B3' 0 2 0 0 -1 0 'fixed'\none_way 'B3' 1 2 1 5300 0 0.5 'loaded'\n")
+    table.write_text("description case oneWay maxSteps fixedPort grainDensity friction stiffnessRatio boundary "
+                     "viscosityRatio caStar\n"
+                     "two_way 'B3' 0 2 0 0 -1 0 'fixed' 0 0\none_way 'B3' 1 2 1 5300 0 0.5 'loaded' 500 100\n")
     proc = subprocess.run(["yade-batch", "--job-threads", "1", "-j", "2", "--log", str(tmp_path / "@.log"),
                            str(table), str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stdout[-2000:]
@@ -344,8 +345,37 @@ def test_yade_batch_runs_the_radial_script(tmp_path):
         config = tomllib.loads((tmp_path / "runs" / "batch" / name / "config.toml").read_text())
         assert config["dem"]["grain_density_kg_m3"] == density and config["dem"]["friction"] == friction
         assert config["dem"]["stiffness_ratio"] == ratio
-        # the command recorded is the one the script ran, not yade's own command line
+        # the second row's M and Ca* replace B3's
+        assert (summary["viscosity_ratio"], summary["ca_star"]) == pytest.approx((500.0, 100.0) if one_way else
+                                                                                 (9777.78, 1138.1), rel=1e-6)
+        # the command recorded is the one the script ran, not yade's own command line, and the
+        # numpy it ran on is Debian's, the one YADE loaded (round-off can differ from the venv's)
         assert config["run"]["command"].startswith("python -m hmdem.hele_shaw radial --case B3")
+        system_numpy = subprocess.run(["/usr/bin/python3", "-c", "import numpy; print(numpy.__version__)"],
+                                      capture_output=True, text=True).stdout.strip()
+        assert config["run"]["numpy"] == system_numpy
+
+
+@pytest.mark.parametrize("header, row, message", [
+    ("case maxStep", "'B3' 2", "Parameter `maxStep' has no default value"),  # a misspelt column
+    ("case maxSteps", "B3 2", "name 'B3' is not defined"),  # a string without quotes
+])
+def test_yade_batch_table_errors_are_one_line(tmp_path, header, row, message):
+    # YADE's readParamsFromTable raises NameError for both; the script says so in one line and
+    # exits 2 before a run (a new-user pass). yade-batch runs a job as YADE_BATCH=table:line
+    import os
+    import subprocess
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parent.parent / "yade_scripts" / "radial_injection.py"
+    table = tmp_path / "bad.table"
+    table.write_text(f"description {header}\nbad {row}\n")
+    proc = subprocess.run(["yade", "-n", "-x", str(script)], cwd=tmp_path, capture_output=True, text=True,
+                          timeout=120, env={**os.environ, "YADE_BATCH": f"{table}:2"})
+    assert proc.returncode == 2
+    assert f"yade_scripts/radial_injection.py: table: {message}" in proc.stderr
+    assert "Traceback" not in proc.stderr + proc.stdout
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.table"]  # no run started
 
 
 @pytest.mark.parametrize("script", ["radial_injection.py", "hele_shaw_linear.py"])

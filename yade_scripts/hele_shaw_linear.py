@@ -6,10 +6,11 @@
 
 Parameters (``readParamsFromTable``; defaults in brackets): logM [2] = log10(eta_inv / eta_def),
 logCa [1] = log10 Ca*, seed [0] (aperture field), packing [shipped 65 mm packing], out
-[runs/lenormand-batch/<run id>]. The run is exactly the one ``python -m hmdem.sweep lenormand``
-makes for that point (``python -m hmdem.hele_shaw linear --case sd --viscosity-ratio ...``), in
-the same run-directory layout. The yade launcher runs Debian's Python, so the repository root
-goes on sys.path first and the project venv's pure-Python packages last.
+[runs/lenormand-batch/<run id>]. The run is the one ``python -m hmdem.sweep lenormand`` makes
+for that point (``python -m hmdem.hele_shaw linear --case sd --viscosity-ratio ...``), in the
+same run-directory layout. The yade launcher runs Debian's Python, so the repository root goes
+on sys.path first and the project venv's pure-Python packages last, behind Debian's numpy
+(config.toml records which numpy ran: round-off can differ from the venv's).
 """
 import sys
 from pathlib import Path
@@ -19,13 +20,14 @@ ROOT = Path(sys.argv[0]).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.extend(str(p) for p in sorted((ROOT / ".venv" / "lib").glob("python3*/site-packages")))
 
-from hmdem.cli import InputError, sigterm_as_interrupt, yade_script_arguments  # noqa: E402
+from hmdem.cli import InputError, read_yade_table, sigterm_as_interrupt, yade_script_arguments  # noqa: E402
 
 yade_script_arguments("yade_scripts/hele_shaw_linear.py", __doc__, sys.argv[1:])  # before YADE's scene and any run
 
 from yade import utils  # noqa: E402
 
-utils.readParamsFromTable(logM=2.0, logCa=1.0, seed=0, packing="", out="", noTableOk=True)
+read_yade_table("yade_scripts/hele_shaw_linear.py", utils.readParamsFromTable, logM=2.0, logCa=1.0, seed=0,
+                packing="", out="")
 from yade.params import table  # noqa: E402
 
 from hmdem.sweep.grid import SweepPoint  # noqa: E402

@@ -4,15 +4,18 @@
     yade-batch yade_scripts/huang.table yade_scripts/radial_injection.py
 
 Parameters (``readParamsFromTable``; defaults in brackets): case [A1], oneWay [0], maxSteps
-[0 = to breakthrough], dt [0 = the case's], grainDensity [0 = 2650 kg/m^3, Table 3], fixedPort
+[0 = to breakthrough], dt [0 = the case's], viscosityRatio [0 = the case's M], caStar [0 = the
+case's Ca*], grainDensity [0 = 2650 kg/m^3, Table 3], fixedPort
 [0; 1 holds the injection domain's grains], friction [-1 = 0.6, Table 2], stiffnessRatio
 [0 = 1, Table 2], boundary ['fixed'; 'loaded' for pistons at the confining stress, decisions #86],
 packing ['' = the shipped sample; a path in quotes, its k_n comes with it],
 out [runs/batch/<job description>, or a fresh runs/<case>-<time> outside a batch]. The run is
-exactly ``python -m hmdem.hele_shaw radial`` with those flags; its run directory is the same.
-The yade launcher runs Debian's Python, so the repository root goes on sys.path first and the
-project venv's pure-Python packages (meshio, tqdm) last, behind Debian's numpy that YADE has
-already loaded.
+``python -m hmdem.hele_shaw radial`` with those flags, and its run directory is the same. The yade
+launcher runs Debian's Python, so the repository root goes on sys.path first and the project
+venv's pure-Python packages (meshio, tqdm) last, behind Debian's numpy that YADE has already
+loaded (1.24 on Debian 12, the venv's is 2.x; config.toml records which). The model is the same,
+the round-off is not, and B3's fracturing amplifies it: 300 steps of a two-way B3 opened 588
+contacts under yade-batch and 598 from the CLI.
 """
 import sys
 from pathlib import Path
@@ -22,14 +25,15 @@ ROOT = Path(sys.argv[0]).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.extend(str(p) for p in sorted((ROOT / ".venv" / "lib").glob("python3*/site-packages")))
 
-from hmdem.cli import yade_script_arguments  # noqa: E402
+from hmdem.cli import read_yade_table, yade_script_arguments  # noqa: E402
 
 yade_script_arguments("yade_scripts/radial_injection.py", __doc__, sys.argv[1:])  # before YADE's scene and any run
 
 from yade import O, utils  # noqa: E402
 
-utils.readParamsFromTable(case="A1", oneWay=0, maxSteps=0, dt=0.0, grainDensity=0.0, fixedPort=0, friction=-1.0,
-                          stiffnessRatio=0.0, boundary="fixed", packing="", out="", noTableOk=True)
+read_yade_table("yade_scripts/radial_injection.py", utils.readParamsFromTable, case="A1", oneWay=0, maxSteps=0,
+                dt=0.0, viscosityRatio=0.0, caStar=0.0, grainDensity=0.0, fixedPort=0, friction=-1.0,
+                stiffnessRatio=0.0, boundary="fixed", packing="", out="")
 from yade.params import table  # noqa: E402
 
 from hmdem.hele_shaw import main  # noqa: E402
@@ -37,10 +41,15 @@ from hmdem.hele_shaw import main  # noqa: E402
 argv = ["radial", "--case", table.case, "--quiet"]
 if table.oneWay:
     argv.append("--one-way")
-if table.maxSteps:
-    argv += ["--max-steps", str(int(table.maxSteps))]  # a table may write 2e4
+if table.maxSteps:  # a table may write 2e4; 2.5 goes on to the CLI's check
+    steps = table.maxSteps
+    argv += ["--max-steps", str(int(steps)) if float(steps).is_integer() else str(steps)]
 if table.dt:
     argv += ["--dt", str(table.dt)]
+if table.viscosityRatio:
+    argv += ["--viscosity-ratio", str(table.viscosityRatio)]
+if table.caStar:
+    argv += ["--ca-star", str(table.caStar)]
 if table.grainDensity:
     argv += ["--grain-density", str(table.grainDensity)]
 if table.fixedPort:
