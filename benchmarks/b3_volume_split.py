@@ -49,16 +49,23 @@ def row(run: Path) -> str:
             f"{(v1.sum() - polygon.sum()) / fluid:.1%} |")
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def print_run_table(description: str, columns: list[str], row) -> None:
+    """The command line of a script reading finished run directories: one markdown row,
+    ``row(run)``, per directory given."""
+    parser = argparse.ArgumentParser(description=description)
     parser.add_argument("runs", nargs="+", type=Path, help="finished radial run directories")
     args = parser.parse_args()
-    print("| run | case | end | injected Q t [m^2 per m] | fluid sum S V [m^2 per m] | into the starting areas | "
-          "into their growth | wet domains | dry skeleton compacted by | sum S V / Q t | inside-out polygons | "
-          "sum V - hull area, of sum S V |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("| " + " | ".join(columns) + " |")
+    print("|" + "---|" * len(columns))
     for run in args.runs:
         print(row(run), flush=True)
+
+
+def main() -> None:
+    print_run_table(__doc__.splitlines()[0],
+                    ["run", "case", "end", "injected Q t [m^2 per m]", "fluid sum S V [m^2 per m]",
+                     "into the starting areas", "into their growth", "wet domains", "dry skeleton compacted by",
+                     "sum S V / Q t", "inside-out polygons", "sum V - hull area, of sum S V"], row)
 
 
 if __name__ == "__main__":

@@ -16,13 +16,12 @@ fluid to penetrate the fracturing domains", so that the front is finger-like. Pe
   pipes had opened by the time the fluid went through.
 A second per directory.
 """
-import argparse
 import json
 from pathlib import Path
 
 import numpy as np
 
-from b3_volume_split import domain_areas  # a sibling script (benchmarks/ is the script's own folder)
+from b3_volume_split import domain_areas, print_run_table  # a sibling script (benchmarks/ is the script's own folder)
 from hmdem.coupling.geometry import signed_triangle_areas
 from hmdem.coupling.micromechanics import filling_order, fracture_guidance
 from hmdem.network.network import OUTSIDE
@@ -76,15 +75,11 @@ def row(run: Path) -> str:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("runs", nargs="+", type=Path, help="finished radial run directories")
-    args = parser.parse_args()
-    print("| run | case | end [s] | filled domains | feeding pipes opened by the filling | front pipes opened "
-          "at the end | filled domains fed through a contact opened before the fluid came | "
-          "disc radius of the zone [um] | reach [um] | reach / radius | breakthrough path: pipes opened |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
-    for run in args.runs:
-        print(row(run), flush=True)
+    print_run_table(__doc__.splitlines()[0],
+                    ["run", "case", "end [s]", "filled domains", "feeding pipes opened by the filling",
+                     "front pipes opened at the end",
+                     "filled domains fed through a contact opened before the fluid came", "disc radius of the zone [um]", "reach [um]", "reach / radius", "breakthrough path: pipes opened"],
+                    row)
 
 
 if __name__ == "__main__":
