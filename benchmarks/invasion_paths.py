@@ -7,8 +7,8 @@ fluid to penetrate the fracturing domains", so that the front is finger-like. Pe
 - ``fracture_guidance``'s three fractions (hmdem.coupling.micromechanics; decisions #87), read
   from the run's arrays: the feeding pipes (each filled domain's pipes to neighbours filled
   earlier, the port first) whose contact had opened by the time their domain filled, against
-  the front's pipes at the end, which had longer to open; and the filled domains fed through a
-  contact that opened before the fluid first entered them;
+  the front's other pipes at the same moments; and the filled domains fed, from a neighbour
+  already filled, through a contact that opened before the fluid first entered them;
 - the invaded zone's reach (its farthest domain from the port, on the starting positions)
   against the radius of a disc of its starting area: 1 for a disc round the port;
 - the breakthrough path, traced back from the outflow domain that filled first, each step to
@@ -29,16 +29,21 @@ from hmdem.network.network import OUTSIDE
 
 def breakthrough_path(t: np.ndarray, pipe_domains: np.ndarray, outlets: np.ndarray) -> np.ndarray:
     """Pipes from the port to the first filled outflow domain, each step back to the neighbour
-    filled last before (``filling_order``'s t and pipe ends)."""
+    filled last before (``filling_order``'s t and pipe ends); none if no outflow domain filled."""
+    if not np.isfinite(t[outlets]).any():
+        return np.zeros(0, int)
     domain = int(outlets[np.argmin(t[outlets])])
     path = []
     while t[domain] >= 0.0:  # the port's is -1
         pipes = np.flatnonzero((pipe_domains == domain).any(axis=1))
         other = np.where(pipe_domains[pipes, 0] == domain, pipe_domains[pipes, 1], pipe_domains[pipes, 0])
-        came_from = np.argmax(np.where(t[other] < t[domain], t[other], -np.inf))
+        earlier = t[other] < t[domain]
+        if not earlier.any():
+            raise ValueError(f"domain {domain} filled at {t[domain]:.6g} s with no neighbour filled before")
+        came_from = np.argmax(np.where(earlier, t[other], -np.inf))
         path.append(pipes[came_from])
         domain = int(other[came_from])
-    return np.array(path[::-1])
+    return np.array(path[::-1], int)
 
 
 def starting_centres(net, start: np.ndarray) -> np.ndarray:
@@ -77,7 +82,7 @@ def row(run: Path) -> str:
 def main() -> None:
     print_run_table(__doc__.splitlines()[0],
                     ["run", "case", "end [s]", "filled domains", "feeding pipes opened by the filling",
-                     "front pipes opened at the end",
+                     "the front's other pipes opened, at the same moments",
                      "filled domains fed through a contact opened before the fluid came", "disc radius of the zone [um]", "reach [um]", "reach / radius", "breakthrough path: pipes opened"],
                     row)
 

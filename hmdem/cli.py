@@ -167,11 +167,12 @@ def yade_script_arguments(script: str, doc: str, argv: list[str]) -> None:
 
 def read_yade_table(script: str, read_params, **defaults) -> None:
     """``read_params`` (YADE's ``utils.readParamsFromTable``) with ``defaults``, for a script
-    under yade-batch: a column the script does not know, or a value that is not a Python literal
-    (YADE raises NameError for both), is one line on stderr and exit status 2, before a run."""
+    under yade-batch: a column the script does not know, or a value YADE cannot evaluate (it
+    evaluates each as Python: a string without quotes is a NameError or a SyntaxError), is one
+    line on stderr and exit status 2, before a run."""
     try:
         read_params(noTableOk=True, **defaults)
-    except NameError as exc:
+    except (NameError, SyntaxError) as exc:
         print(f"{script}: table: {exc} (its columns: {', '.join(defaults)}; strings in quotes)", file=sys.stderr)
         sys.exit(2)
 

@@ -120,12 +120,14 @@ def filling_order(invasion_time: np.ndarray, inlet: np.ndarray,
     return t, np.where(pipe_domains == OUTSIDE, len(invasion_time), pipe_domains)
 
 
-def feeding_pipes(t: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def feeding_pipes(t: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The pipes whose one domain filled after the other (``filling_order``'s t and ends), and
-    for each that later domain: the fluid could have filled it through the pipe."""
+    for each the later domain and the earlier one: the fluid could have filled the later
+    through the pipe."""
     a, b = ends.T
     feeds = np.isfinite(np.maximum(t[a], t[b])) & (t[a] != t[b])
-    return np.flatnonzero(feeds), np.where(t[a] > t[b], a, b)[feeds]
+    later = t[a] > t[b]
+    return np.flatnonzero(feeds), np.where(later, a, b)[feeds], np.where(later, b, a)[feeds]
 
 
 def fracture_guidance(opened_time: np.ndarray, pipe_domains: np.ndarray, wetted_time: np.ndarray,
@@ -135,27 +137,39 @@ def fracture_guidance(opened_time: np.ndarray, pipe_domains: np.ndarray, wetted_
     fracturing domains"; decisions #87). A filled domain's feeding pipes join it to neighbours
     filled earlier, the port counting as filled first:
     ``fracture_fed_fraction``, of the filled domains (the port left out), those fed through a
-    contact that opened before the fluid first entered the domain;
+    contact that opened before the fluid first entered the domain, from a neighbour already
+    filled then;
     ``feeding_pipes_opened_fraction``, of the feeding pipes, those whose contact had opened by
     the time their domain filled;
-    ``front_pipes_opened_fraction``, the control: of the pipes on the front at the end (one
-    domain filled, the other not), those opened by then, which had longer to open.
+    ``front_pipes_opened_fraction``, the control: at each time a domain filled, the other pipes
+    then on the front (one domain filled before, the other not yet), those opened by then,
+    pooled over those times. They are what the fluid could have gone in through instead.
+    Pipes on the outer face carry no flow and count in neither set.
     Per pipe ``opened_time`` (inf: never opened) and ``pipe_domains`` (m, 2) with OUTSIDE for
     the outer face; per domain ``wetted_time`` (fluid first entered) and ``invasion_time``
     (filled, S = 1); ``inlet`` the port's domains. nan where a set is empty."""
     t, ends = filling_order(invasion_time, inlet, pipe_domains)
-    pipe, fed = feeding_pipes(t, ends)
+    inner = (pipe_domains != OUTSIDE).all(axis=1)
+    pipe, fed, feeder = feeding_pipes(t, ends)  # none on the outer face: its end never fills
     filled = np.flatnonzero(np.isfinite(t[:-1]) & (t[:-1] >= 0.0))
-    guided = np.isin(filled, fed[opened_time[pipe] < wetted_time[fed]])
-    a, b = ends.T
-    front = (np.isfinite(t[a]) != np.isfinite(t[b])) & (pipe_domains != OUTSIDE).all(axis=1)
+    came_through = (opened_time[pipe] < wetted_time[fed]) & (t[feeder] < wetted_time[fed])
+    guided = np.isin(filled, fed[came_through])
+    # the control, time-matched: a pipe is on the front between its two domains' filling times
+    # (open interval); count the filling times inside it, and those at or after its opening
+    events = np.unique(t[fed])
+    first, second = np.minimum(t[ends[:, 0]], t[ends[:, 1]]), np.maximum(t[ends[:, 0]], t[ends[:, 1]])
+    front = inner & np.isfinite(first) & (first < second)
+    start = np.searchsorted(events, first[front], "right")
+    end = np.searchsorted(events, second[front], "left")
+    since_opened = np.maximum(start, np.searchsorted(events, opened_time[front], "left"))
+    on_front, opened_on_front = np.maximum(end - start, 0).sum(), np.maximum(end - since_opened, 0).sum()
 
-    def fraction(mask: np.ndarray) -> float:
-        return float(mask.mean()) if mask.size else float("nan")
+    def fraction(count, total) -> float:
+        return float(count / total) if total else float("nan")
 
-    return {"fracture_fed_fraction": fraction(guided),
-            "feeding_pipes_opened_fraction": fraction(opened_time[pipe] <= t[fed]),
-            "front_pipes_opened_fraction": fraction(np.isfinite(opened_time[front]))}
+    return {"fracture_fed_fraction": fraction(guided.sum(), guided.size),
+            "feeding_pipes_opened_fraction": fraction(np.sum(opened_time[pipe] <= t[fed]), pipe.size),
+            "front_pipes_opened_fraction": fraction(opened_on_front, on_front)}
 
 
 STEP_ENERGY_KEYS = ("time_s", "step_s", "injection_pressure_pa", "injection_energy_j", "residual_energy_j",

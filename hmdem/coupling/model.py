@@ -190,6 +190,8 @@ class CouplingRecord:
     replica_seconds: float = 0.0
     confirmations: int = 0  # YADE runs at pressures the replica converged to
     confirmations_failed: int = 0  # ... whose own evaluation missed the tolerance
+    # YADE runs at the last trial pressures of a last attempt the replica left unconverged
+    unconverged_yade_runs: int = 0
 
     @property
     def all_dem_cycles(self) -> int:
@@ -365,7 +367,8 @@ class CoupledFlowModel(FlowModel):
         self._inside_step = True  # the DEM is at t^n in the snapshot until _accept
         for halving in range(c.max_dt_halvings + 1):
             try:
-                sol, fill, dt, limiter, iterations, converged = self._pv_step(state, blocked_guess)
+                sol, fill, dt, limiter, iterations, converged = self._pv_step(
+                    state, blocked_guess, last_attempt=halving == c.max_dt_halvings)
             except SimulationDiverged:
                 if halving == c.max_dt_halvings:
                     raise
@@ -413,9 +416,10 @@ class CoupledFlowModel(FlowModel):
         self.volume_change[:] = self.domain_volumes(positions) - self.reference_volume
         return self._trial(state, dt, g, orient, pc, blocked)
 
-    def _pv_step(self, state, blocked_guess):
+    def _pv_step(self, state, blocked_guess, last_attempt: bool = True):
         """One flow step at the front logic's dt with the P-V iteration; also returns the
-        iteration count and whether it converged."""
+        iteration count and whether it converged. On the ``last_attempt`` a step that is kept
+        unconverged is YADE's, not the replica's."""
         c = self.coupling
         self.volume_change[:] = 0.0
         self._predicting = c.pv_predictor and not c.one_way
@@ -441,6 +445,7 @@ class CoupledFlowModel(FlowModel):
         newton = None  # the linearised skeleton's Newton step, built at the first unconverged evaluation
         iteration = 0
         confirming = False  # this evaluation is YADE's run at the pressures the replica converged to
+        kept_unconverged = False  # ... or at its last trial, the replica out of iterations
         while True:
             iteration += not confirming
             calc, fill = self._pv_evaluation(state, dt, positions, g, orient, pc, sol.blocked)
@@ -455,12 +460,14 @@ class CoupledFlowModel(FlowModel):
             if self.pv_log is not None:
                 worst = int(np.argmax(mismatch))
                 self.pv_log.append(PVEvaluation(state.t, dt, iteration, float(mismatch[worst] / tolerance), worst,
-                                                self.quasi_newton.reused, on_replica, confirming))
+                                                self.quasi_newton.reused, on_replica,
+                                                confirming and not kept_unconverged))
             tested = mismatch[self.inlet] if c.pv_test == "inflow" else mismatch
             passed = bool(np.all(tested <= tolerance))
             if confirming:
-                self.coupling_record.confirmations += 1
-                self.coupling_record.confirmations_failed += not passed
+                self.coupling_record.confirmations += not kept_unconverged
+                self.coupling_record.confirmations_failed += not passed and not kept_unconverged
+                self.coupling_record.unconverged_yade_runs += kept_unconverged
                 confirming = False
             if passed and not on_replica:
                 return sol, fill, dt, limiter, iteration, True
@@ -471,10 +478,10 @@ class CoupledFlowModel(FlowModel):
                 self._rewind()
                 positions = self.move_grains(p_trial, dt)
                 continue
-            if iteration == c.pv_max_iter and on_replica:
-                # out of iterations on the replica: YADE runs the step once at the last trial
-                # pressures, counted as a confirmation, so that a step kept unconverged is YADE's
-                on_replica, confirming = False, True
+            if iteration == c.pv_max_iter and on_replica and last_attempt:
+                # out of iterations on the replica with no halving left: YADE runs the step once
+                # at the last trial pressures, so that the step kept unconverged is YADE's
+                on_replica, confirming, kept_unconverged = False, True, True
                 self._rewind()
                 positions = self.move_grains(p_trial, dt)
                 continue
