@@ -614,3 +614,18 @@ def test_config_toml_leaves_unset_values_out(tmp_path):
 
     write_toml(tmp_path / "c.toml", {"coupling": {"dem_cycles_per_step": None, "pv_rtol": 1e-3, "note": "None?"}})
     assert tomllib.loads((tmp_path / "c.toml").read_text()) == {"coupling": {"pv_rtol": 1e-3, "note": "None?"}}
+
+
+@pytest.mark.parametrize("threads, load, warned", [(None, 1.9, False), (1, 1.9, False), (2, 0.2, False),
+                                                   (2, 1.0, True), (4, 0.0, True)])
+def test_threads_beyond_the_idle_cores_are_warned_of(monkeypatch, threads, load, warned):
+    # a new-user pass: --threads 2 beside another run on 2 vCPUs took 50-52 s for 10 B3 steps
+    # against 3.5 s on one thread; the run says so before it starts
+    import hmdem.hele_shaw as hs
+
+    monkeypatch.setattr(hs.os, "getloadavg", lambda: (load, load, load))
+    monkeypatch.setattr(hs.os, "cpu_count", lambda: 2)
+    warning = hs.busy_cores_warning(threads)
+    assert (warning is not None) == warned
+    if warned:
+        assert f"--threads {threads}" in warning and "--threads 1" in warning
