@@ -159,15 +159,17 @@ def test_b3_fractures_open_before_the_fluid_comes(huang):
 
 def test_b3_fluid_goes_in_through_the_fractures(huang):
     # H4 from the fluid's side (decisions #87): B3's fractures guide "the fluid to penetrate the
-    # fracturing domains"; A3's "remain within the fluid infiltration zone, not altering the
-    # circular flow front". Most of B3's filled pores were fed through a contact that had opened
-    # before the fluid came, and the pipes it went in through had opened more often than the
-    # front's other pipes at the same moments; most of A3's were not. Measured 2026-11-30
-    # (benchmarks/invasion_paths.py): B3 56.5 % of the filled pores (50.5-56.5 % over six runs:
-    # shipped, seed 1, one-way, heavier, softer and stiffer grains; a thin margin), feeding pipes
-    # 52-57 % against 43-47 %; A3 16.4 %, 13 % against 11 %
-    b3, a3 = huang("B3")[0], huang("A3")[0]
-    assert b3["fracture_fed_fraction"] > 0.5 > a3["fracture_fed_fraction"]
+    # fracturing domains"; A3's and B1's "remain within the fluid infiltration zone". Read as an
+    # ordering, as H5's D_f: more of B3's filled pores were fed through a contact that had opened
+    # before the fluid came than of A3's or B1's, and B3's fluid went in through opened pipes
+    # more often than through the front's other pipes at the same moments. At paper size B3 is
+    # near half, 0.47-0.565 over seven runs, so "most" is not asserted here (the reduced test
+    # does, at 0.81). Measured 2026-11-30 (benchmarks/invasion_paths.py): B3 0.47 and 0.505-0.565
+    # (shipped twice, seed 1, one-way, heavier, softer and stiffer grains), feeding pipes
+    # 49-57 % open against 38-47 %; A3 0.16, 13 % against 11 %; B1 0.24, 17 % against 17 %
+    b3 = huang("B3")[0]
+    for case in ("A3", "B1"):
+        assert b3["fracture_fed_fraction"] > huang(case)[0]["fracture_fed_fraction"], case
     assert b3["feeding_pipes_opened_fraction"] > b3["front_pipes_opened_fraction"]
 
 
