@@ -21,7 +21,7 @@ from pathlib import Path
 import meshio
 import numpy as np
 
-from b3_volume_split import domain_areas  # a sibling script (benchmarks/ is the script's own folder)
+from b3_volume_split import starting_geometry  # a sibling script (benchmarks/ is the script's own folder)
 from hmdem.coupling.model import VOLUME_FLOOR
 from hmdem.snapshots import read_collection
 
@@ -33,7 +33,9 @@ def frames(run: Path) -> np.ndarray:
     squeezed to 1 % of their starting area or turned inside out (model.py's VOLUME_FLOOR)."""
     net, fractures = np.load(run / "network.npz"), np.load(run / "fractures.npz")
     start = fractures["initial_positions"]
-    n = len(net["domain_volume"])
+    geometry = starting_geometry(net, start)
+    v0 = geometry.volumes(start)
+    n = len(v0)
     rows = []
     for t, name in read_collection(run / "domains.pvd"):
         mesh = meshio.read(name)
@@ -42,7 +44,7 @@ def frames(run: Path) -> np.ndarray:
         saturation[cells["domain"][0]] = cells["saturation"][0]
         pressure[cells["domain"][0]] = cells["pressure"][0]
         dry = saturation == 0
-        v0, v = domain_areas(net, start, mesh.points[:, :2])
+        v = geometry.volumes(mesh.points[:, :2])
         strain = (v0[dry] - v[dry]).sum() / v0[dry].sum()
         rows.append((t, pressure[net["inlet_domains"]].mean(), strain, v0[~dry].sum(), v.sum() / v0.sum() - 1.0,
                      np.sum(v <= VOLUME_FLOOR * v0)))

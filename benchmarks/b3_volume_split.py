@@ -17,21 +17,25 @@ per directory.
 import argparse
 import json
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
-from hmdem.coupling.geometry import signed_triangle_areas
-from hmdem.network.network import OUTSIDE
+from hmdem.coupling.geometry import DomainGeometry
+
+
+def starting_geometry(net, initial: np.ndarray) -> DomainGeometry:
+    """The model's domain geometry of a run directory's ``network.npz``, its triangles oriented
+    on the starting grain positions ``initial`` (so that areas stay positive as grains move)."""
+    fields = ("triangles", "triangle_domain", "pipe_domains", "pipe_grains")
+    return DomainGeometry(SimpleNamespace(n_domains=len(net["domain_volume"]), points=initial,
+                                          **{name: net[name] for name in fields}))
 
 
 def domain_areas(net, initial: np.ndarray, final: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each domain's centre-polygon area with the grains at ``initial`` and at ``final``."""
-    inside = net["triangle_domain"] != OUTSIDE
-    triangles, domain = net["triangles"][inside], net["triangle_domain"][inside]
-    orientation = np.sign(signed_triangle_areas(initial, triangles))  # areas stay positive as grains move
-    n = len(net["domain_volume"])
-    return tuple(np.bincount(domain, orientation * signed_triangle_areas(points, triangles), n)
-                 for points in (initial, final))
+    geometry = starting_geometry(net, initial)
+    return geometry.volumes(initial), geometry.volumes(final)
 
 
 def row(run: Path) -> str:

@@ -21,10 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from b3_volume_split import domain_areas, print_run_table  # a sibling script (benchmarks/ is the script's own folder)
-from hmdem.coupling.geometry import signed_triangle_areas
+from b3_volume_split import print_run_table, starting_geometry  # a sibling script (benchmarks/ is its folder)
 from hmdem.coupling.micromechanics import filling_order, fracture_guidance
-from hmdem.network.network import OUTSIDE
 
 
 def breakthrough_path(t: np.ndarray, pipe_domains: np.ndarray, outlets: np.ndarray) -> np.ndarray:
@@ -46,17 +44,6 @@ def breakthrough_path(t: np.ndarray, pipe_domains: np.ndarray, outlets: np.ndarr
     return np.array(path[::-1], int)
 
 
-def starting_centres(net, start: np.ndarray) -> np.ndarray:
-    """Each domain's area centroid on the starting grain positions."""
-    inside = net["triangle_domain"] != OUTSIDE
-    triangles, domain = net["triangles"][inside], net["triangle_domain"][inside]
-    weight = np.abs(signed_triangle_areas(start, triangles))
-    centroid = start[triangles].mean(axis=1)
-    n = len(net["domain_volume"])
-    moments = [np.bincount(domain, weight * centroid[:, axis], n) for axis in (0, 1)]
-    return np.c_[moments[0], moments[1]] / np.bincount(domain, weight, n)[:, None]
-
-
 def row(run: Path) -> str:
     summary = json.loads((run / "summary.json").read_text())
     net, fractures, state = (np.load(run / f"{name}.npz") for name in ("network", "fractures", "state"))
@@ -66,9 +53,9 @@ def row(run: Path) -> str:
     t, ends = filling_order(state["invasion_time"], port, net["pipe_domains"])
     zone = np.flatnonzero(np.isfinite(t[:-1]))  # the filled domains and the port
     start = fractures["initial_positions"]
-    area, _ = domain_areas(net, start, fractures["positions"])
-    radius = np.sqrt(area[zone].sum() / np.pi)
-    centre = starting_centres(net, start)
+    geometry = starting_geometry(net, start)
+    radius = np.sqrt(geometry.volumes(start)[zone].sum() / np.pi)
+    centre = geometry.centroids(start)
     reach = np.linalg.norm(centre[zone] - centre[port].mean(axis=0), axis=1).max()
     path = breakthrough_path(t, ends, net["outlet_domains"])
     path_opened = opened_at[path] <= t[ends[path]].max(axis=1)

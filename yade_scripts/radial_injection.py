@@ -44,20 +44,15 @@ if table.oneWay:
 if table.maxSteps:  # a table may write 2e4; 2.5 goes on to the CLI's check
     steps = table.maxSteps
     argv += ["--max-steps", str(int(steps)) if float(steps).is_integer() else str(steps)]
-if table.dt:
-    argv += ["--dt", str(table.dt)]
-if table.viscosityRatio:
-    argv += ["--viscosity-ratio", str(table.viscosityRatio)]
-if table.caStar:
-    argv += ["--ca-star", str(table.caStar)]
-if table.grainDensity:
-    argv += ["--grain-density", str(table.grainDensity)]
+# columns whose 0 means "the case's own value"; the CLI checks the others
+for column, flag in (("dt", "--dt"), ("viscosityRatio", "--viscosity-ratio"), ("caStar", "--ca-star"),
+                     ("grainDensity", "--grain-density"), ("stiffnessRatio", "--stiffness-ratio")):
+    if getattr(table, column):
+        argv += [flag, str(getattr(table, column))]
 if table.fixedPort:
     argv.append("--fixed-port")
 if table.friction != -1:  # 0 is a valid coefficient, so "unset" is -1; other values go to the CLI's check
     argv += ["--friction", str(table.friction)]
-if table.stiffnessRatio:
-    argv += ["--stiffness-ratio", str(table.stiffnessRatio)]
 argv += ["--boundary", table.boundary]  # the CLI checks the value
 if table.packing:
     argv += ["--packing", table.packing]

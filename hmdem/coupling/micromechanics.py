@@ -120,16 +120,6 @@ def filling_order(invasion_time: np.ndarray, inlet: np.ndarray,
     return t, np.where(pipe_domains == OUTSIDE, len(invasion_time), pipe_domains)
 
 
-def feeding_pipes(t: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The pipes whose one domain filled after the other (``filling_order``'s t and ends), and
-    for each the later domain and the earlier one: the fluid could have filled the later
-    through the pipe."""
-    a, b = ends.T
-    feeds = np.isfinite(np.maximum(t[a], t[b])) & (t[a] != t[b])
-    later = t[a] > t[b]
-    return np.flatnonzero(feeds), np.where(later, a, b)[feeds], np.where(later, b, a)[feeds]
-
-
 def fracture_guidance(opened_time: np.ndarray, pipe_domains: np.ndarray, wetted_time: np.ndarray,
                       invasion_time: np.ndarray, inlet: np.ndarray) -> dict:
     """Summary keys on whether the fluid went in through the opened contacts (seed 004 §4.2: B3's
@@ -149,16 +139,19 @@ def fracture_guidance(opened_time: np.ndarray, pipe_domains: np.ndarray, wetted_
     the outer face; per domain ``wetted_time`` (fluid first entered) and ``invasion_time``
     (filled, S = 1); ``inlet`` the port's domains. nan where a set is empty."""
     t, ends = filling_order(invasion_time, inlet, pipe_domains)
-    inner = (pipe_domains != OUTSIDE).all(axis=1)
-    pipe, fed, feeder = feeding_pipes(t, ends)  # none on the outer face: its end never fills
+    a, b = ends.T
+    first, second = np.minimum(t[a], t[b]), np.maximum(t[a], t[b])
+    # feeding pipes: one domain filled after the other (none on the outer face: its end never fills)
+    pipe = np.flatnonzero(np.isfinite(second) & (first < second))
+    later = t[a[pipe]] > t[b[pipe]]
+    fed, feeder = np.where(later, a[pipe], b[pipe]), np.where(later, b[pipe], a[pipe])
     filled = np.flatnonzero(np.isfinite(t[:-1]) & (t[:-1] >= 0.0))
     came_through = (opened_time[pipe] < wetted_time[fed]) & (t[feeder] < wetted_time[fed])
     guided = np.isin(filled, fed[came_through])
     # the control, time-matched: a pipe is on the front between its two domains' filling times
     # (open interval); count the filling times inside it, and those at or after its opening
     events = np.unique(t[fed])
-    first, second = np.minimum(t[ends[:, 0]], t[ends[:, 1]]), np.maximum(t[ends[:, 0]], t[ends[:, 1]])
-    front = inner & np.isfinite(first) & (first < second)
+    front = (pipe_domains != OUTSIDE).all(axis=1) & np.isfinite(first) & (first < second)
     start = np.searchsorted(events, first[front], "right")
     end = np.searchsorted(events, second[front], "left")
     since_opened = np.maximum(start, np.searchsorted(events, opened_time[front], "left"))

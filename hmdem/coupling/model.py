@@ -464,11 +464,12 @@ class CoupledFlowModel(FlowModel):
                                                 confirming and not kept_unconverged))
             tested = mismatch[self.inlet] if c.pv_test == "inflow" else mismatch
             passed = bool(np.all(tested <= tolerance))
-            if confirming:
-                self.coupling_record.confirmations += not kept_unconverged
-                self.coupling_record.confirmations_failed += not passed and not kept_unconverged
-                self.coupling_record.unconverged_yade_runs += kept_unconverged
-                confirming = False
+            if confirming and kept_unconverged:
+                self.coupling_record.unconverged_yade_runs += 1
+            elif confirming:
+                self.coupling_record.confirmations += 1
+                self.coupling_record.confirmations_failed += not passed
+            confirming = False
             if passed and not on_replica:
                 return sol, fill, dt, limiter, iteration, True
             if passed:
