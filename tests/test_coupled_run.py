@@ -262,6 +262,8 @@ def test_a_partly_filled_domain_squeezed_full_is_filled(small_sample):
     state, rec = model.run(state)
     assert rec.steps == 1
     assert state.saturation[domain] == 1.0 and state.invaded[domain] and state.invasion_time[domain] == state.t
+    # and the step's time-series row counts it (it lagged a step when the row came first)
+    assert rec.series("n_invaded")[0][-1] == state.invaded.sum()
 
 
 def test_two_way_step_conserves_mass_with_moving_grains(small_sample):

@@ -528,6 +528,10 @@ class CoupledFlowModel(FlowModel):
     def _accept(self, state, sol, fill, dt, limiter):
         self._inside_step = False
         super()._accept(state, sol, fill, dt, limiter)
+
+    def _end_step(self, state, dt):
+        """The grains have moved: the domains take their new volumes and apertures before the
+        step's row is written, so that its n_invaded counts domains squeezed full."""
         volume = self.domain_volumes(self.positions)
         self.floored |= volume <= self.volume_floor
         # the lagged one-way variant booked volume_change in this step's solve (and its balance)

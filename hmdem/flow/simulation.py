@@ -256,6 +256,10 @@ class FlowModel:
         state.invaded |= newly
         state.invasion_time[newly] = state.t
 
+    def _end_step(self, state: FlowState, dt: float) -> None:
+        """What changes with the accepted step besides pressure and saturation, before its
+        time-series row is written (nothing for fixed grains)."""
+
     def _refine_overfill(self, state, dt, sol, fill, g, orient, pc):
         """Shorten dt until no domain overfills, aiming at the fill time of the first domain to
         fill (seed 004 Eq. 18, iterated; digest U10). If the passes run out, the longest trial that
@@ -399,6 +403,7 @@ class FlowModel:
         if self.setup.two_phase:
             state.saturation = np.clip(state.saturation + dt * fill / self.volume, 0.0, 1.0)
             self._mark_filled(state)
+        self._end_step(state, dt)
         rec.steps += 1
         rec.eq18_steps += limiter == "eq18"
         rec.eq19_steps += limiter == "eq19"
