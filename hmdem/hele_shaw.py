@@ -15,7 +15,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from . import __version__
-from .cases import CASES
+from .cases import CASES, default_packing_path
 from .cli import (InputError, OneLineParser, add_contact_arguments, check_aperture_fits_grains, contact_gap_fraction,
                   dispatch, interrupted_status, local_damping, new_run_directory, non_negative_int, positive_int,
                   positive_number, read_compacted_packing, read_packing, relative_tolerance)
@@ -251,6 +251,7 @@ def run_linear(args) -> int:
     darcy = read_darcy_run(sc, rec, state) if case.name == "darcy" and rec.status == "t_max" else None
     summary = write_run(out, sc, model, state, rec, seed=args.seed, argv=recorded_argv(args),
                         snapshots=None if snapshots is None else snapshots.taken,
+                        packing_file=None if case.geometry == "lattice" else args.packing or default_packing_path(),
                         summary_extra=None if darcy is None else darcy.summary(),
                         extra_files=darcy.write_figure if darcy is not None and darcy.steady else None)
     print(f"{case.name}: {rec.status} at t = {state.t:.4g} s after {rec.steps} steps; regime: {summary['regime']}, "
@@ -333,7 +334,7 @@ def run_radial(args) -> int:
 
     from .coupling.model import CoupledFlowModel
     from .coupling.output import write_radial_run
-    from .coupling.radial import RADIAL_CASES, build_radial_scenario
+    from .coupling.radial import RADIAL_CASES, build_radial_scenario, default_huang_packing_path
     from .dem.runs import start_grains
 
     packing = None if args.packing is None else read_compacted_packing(args.packing)
@@ -367,7 +368,8 @@ def run_radial(args) -> int:
     if bar is not None:
         bar.close(rec.status == "breakthrough")
     summary = write_radial_run(out, sc, model, state, rec, argv=recorded_argv(args),
-                               snapshots=None if snapshots is None else snapshots.taken)
+                               snapshots=None if snapshots is None else snapshots.taken,
+                               packing_file=args.packing or default_huang_packing_path())
     early = ""
     if summary["early_peak_fell"]:
         early = (f" (early peak {summary['early_peak_injection_pressure_pa']:.4g} Pa "

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import platform
 from dataclasses import asdict
 from pathlib import Path
@@ -94,15 +95,23 @@ def summarize(sc, model, state, rec, d_f: float | None = None) -> dict:
     }
 
 
+def packing_record(path) -> dict:
+    """config.toml's [packing]: the file's absolute path and the SHA-256 of its bytes."""
+    path = Path(path)
+    return {"file": str(path.resolve()), "sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
+
+
 def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: dict | None = None,
-              extra_files=None, overlay=None, config_extra: dict | None = None, snapshots=None) -> dict:
+              extra_files=None, overlay=None, config_extra: dict | None = None, snapshots=None,
+              packing_file=None) -> dict:
     """Write every file of the run directory into a temporary folder, then rename it to ``out``.
 
     Couplings add to the contract: ``summary_extra`` (keys added to or replacing the summary's),
     ``extra_files(tmp)`` writes further files, ``overlay`` (k, 2, 2) segments drawn in red on
     the pattern (e.g. opened contacts), ``config_extra`` more config.toml tables.
     ``snapshots`` (a list of :class:`~hmdem.snapshots.Snapshot`, or None): the ParaView time
-    series, closed by the final state (hmdem/snapshots.py).
+    series, closed by the final state (hmdem/snapshots.py). ``packing_file``: the grains' file,
+    which config.toml's [packing] names with its SHA-256 (the shipped one too).
     """
     extra = summary_extra or {}
     summary = summarize(sc, model, state, rec, extra.get("fractal_dimension"))
@@ -119,6 +128,8 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
         "solver": setup,
         **(config_extra or {}),
     }
+    if packing_file is not None:
+        config["packing"] = packing_record(packing_file)
     with atomic_run_directory(out) as tmp:
         write_toml(tmp / "config.toml", config)
         write_json(tmp / "summary.json", summary)

@@ -1,5 +1,6 @@
 """Command line and run-directory contract of ``python -m hmdem.hele_shaw`` (issue 2)."""
 
+import hashlib
 import json
 import os
 import subprocess
@@ -132,6 +133,18 @@ def test_an_empty_out_is_refused(tmp_path, monkeypatch, capsys):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_config_toml_names_the_packing_by_path_and_content(tmp_path):
+    # a packing given by --packing is recorded by its absolute path and the SHA-256 of its bytes,
+    # so a run can be matched to its sample after the file is moved or regenerated
+    packing = tmp_path / "sample.npz"
+    packing.write_bytes((DATA / "lenormand_packing.npz").read_bytes())
+    out = tmp_path / "run"
+    assert main(["linear", "--packing", str(packing), "--max-steps", "1", "--out", str(out), "--quiet"]) == 0
+    recorded = tomllib.loads((out / "config.toml").read_text())["packing"]
+    assert recorded["file"] == str(packing.resolve())
+    assert recorded["sha256"] == hashlib.sha256(packing.read_bytes()).hexdigest()
+
+
 def test_existing_out_is_refused(tmp_path, capsys):
     (tmp_path / "run").mkdir()
     assert main(["linear", "--out", str(tmp_path / "run")]) == 2
@@ -152,6 +165,7 @@ def test_run_directory_contract(tmp_path):
     assert summary["case"] == "chen" and summary["status"] == "breakthrough"
     config = tomllib.loads((out / "config.toml").read_text())
     assert config["run"]["seed"] == 0 and config["solver"]["dt"] == 0.01 and config["solver"]["inlet"] == "manifold"
+    assert "packing" not in config  # a square lattice (App. D.2), no grains' file
     net = np.load(out / "network.npz")
     for key in ("domain_centroid", "domain_volume", "pipe_domains", "pipe_aperture", "pipe_length",
                 "pipe_entry_pressure", "inlet_domains", "outlet_domains"):
@@ -429,6 +443,10 @@ def test_radial_run_directory_contract(tmp_path):
         np.diff(series["energy"], prepend=0.0)[onset] - np.diff(series["dissipation"], prepend=0.0)[onset], rel=1e-9)
     assert 0.0 < summary["fracture_onset_dissipated_fraction"] < 1.0
     config = tomllib.loads((out / "config.toml").read_text())
+    # the sample is named also when --packing was not given: the shipped file and its bytes
+    shipped = Path(default_huang_packing_path())
+    assert config["packing"] == {"file": str(shipped.resolve()),
+                                 "sha256": hashlib.sha256(shipped.read_bytes()).hexdigest()}
     assert config["coupling"]["one_way"] is False and config["aperture_law"]["residual_aperture"] == 7.53e-6
     # B3's defaults (decisions #55): the skeleton's Newton step, no pocket step
     assert config["coupling"]["pv_skeleton_newton"] is True and config["coupling"]["pv_pocket_newton"] is False

@@ -333,8 +333,9 @@ def test_yade_batch_runs_the_radial_script(tmp_path):
     table = tmp_path / "short.table"
     # friction: -1 leaves Table 2's 0.6, and 0 (frictionless grains) is a value, not "unset"
     table.write_text("description case oneWay maxSteps fixedPort grainDensity friction stiffnessRatio boundary "
-                     "viscosityRatio caStar\n"
-                     "two_way 'B3' 0 2 0 0 -1 0 'fixed' 0 0\none_way 'B3' 1 2 1 5300 0 0.5 'loaded' 500 100\n")
+                     "viscosityRatio caStar flags\n"
+                     "two_way 'B3' 0 2 0 0 -1 0 'fixed' 0 0 ''\n"
+                     "one_way 'B3' 1 2 1 5300 0 0.5 'loaded' 500 100 '--damping=0.3,--sigma=2e-4'\n")
     proc = subprocess.run(["yade-batch", "--job-threads", "1", "-j", "2", "--log", str(tmp_path / "@.log"),
                            str(table), str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stdout[-2000:]
@@ -347,6 +348,9 @@ def test_yade_batch_runs_the_radial_script(tmp_path):
         config = tomllib.loads((tmp_path / "runs" / "batch" / name / "config.toml").read_text())
         assert config["dem"]["grain_density_kg_m3"] == density and config["dem"]["friction"] == friction
         assert config["dem"]["stiffness_ratio"] == ratio
+        # the flags column takes any other CLI flag (the second row's damping and Sigma)
+        assert config["dem"]["damping"] == (0.3 if one_way else 0.7)
+        assert (summary["sigma_m"] == 2e-4) is one_way
         # the second row's M and Ca* replace B3's
         assert (summary["viscosity_ratio"], summary["ca_star"]) == pytest.approx((500.0, 100.0) if one_way else
                                                                                  (9777.78, 1138.1), rel=1e-6)
@@ -362,6 +366,7 @@ def test_yade_batch_runs_the_radial_script(tmp_path):
     ("case maxStep", "'B3' 2", "Parameter `maxStep' has no default value"),  # a misspelt column
     ("case maxSteps", "B3 2", "name 'B3' is not defined"),  # a string without quotes
     ("case packing", "'B3' /tmp/p.npz", "invalid syntax"),  # a path without quotes
+    ("case flags", "'B3' '--damping 0.3'", "unterminated string literal"),  # a blank splits a column
 ])
 def test_yade_batch_table_errors_are_one_line(tmp_path, header, row, message):
     # YADE's readParamsFromTable evaluates each value as Python and raises NameError or

@@ -8,7 +8,9 @@ Parameters (``readParamsFromTable``; defaults in brackets): case [A1], oneWay [0
 case's Ca*], grainDensity [0 = 2650 kg/m^3, Table 3], fixedPort
 [0; 1 holds the injection domain's grains], friction [-1 = 0.6, Table 2], stiffnessRatio
 [0 = 1, Table 2], boundary ['fixed'; 'loaded' for pistons at the confining stress, decisions #86],
-packing ['' = the shipped sample; a path in quotes, its k_n comes with it],
+packing ['' = the shipped sample; a path in quotes, its k_n comes with it], flags ['' = none;
+any further flags of the CLI, comma-separated, e.g. '--damping=0.3,--snapshots=40': YADE splits
+a table's columns at blanks and allows no quoting],
 out [runs/batch/<job description>, or a fresh runs/<case>-<time> outside a batch]. The run is
 ``python -m hmdem.hele_shaw radial`` with those flags, and its run directory is the same. The yade
 launcher runs Debian's Python, so the repository root goes on sys.path first and the project
@@ -33,7 +35,7 @@ from yade import O, utils  # noqa: E402
 
 read_yade_table("yade_scripts/radial_injection.py", utils.readParamsFromTable, case="A1", oneWay=0, maxSteps=0,
                 dt=0.0, viscosityRatio=0.0, caStar=0.0, grainDensity=0.0, fixedPort=0, friction=-1.0,
-                stiffnessRatio=0.0, boundary="fixed", packing="", out="")
+                stiffnessRatio=0.0, boundary="fixed", packing="", flags="", out="")
 from yade.params import table  # noqa: E402
 
 from hmdem.hele_shaw import main  # noqa: E402
@@ -56,6 +58,7 @@ if table.friction != -1:  # 0 is a valid coefficient, so "unset" is -1; other va
 argv += ["--boundary", table.boundary]  # the CLI checks the value
 if table.packing:
     argv += ["--packing", table.packing]
+argv += [flag for flag in table.flags.split(",") if flag]  # the CLI checks each
 description = O.tags["description"] if "description" in O.tags.keys() else ""
 out = table.out or (f"runs/batch/{description}" if description else "")
 if out:
