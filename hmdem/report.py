@@ -80,6 +80,7 @@ def summarize(sc, model, state, rec, d_f: float | None = None) -> dict:
         "eq18_steps": rec.eq18_steps,
         "eq19_steps": rec.eq19_steps,
         "linear_solves": rec.solves,
+        "unsettled_active_sets": rec.unsettled_solves,
         "max_mass_balance_error": rec.max_mass_balance_error,
         "run_mass_balance_error": rec.run_mass_balance_error(sc.setup.rate, state.t),
         "simulated_time_s": state.t,

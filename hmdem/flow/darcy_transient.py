@@ -1,11 +1,13 @@
-"""The single-phase Darcy test of seed 004 App. D.1 (digest §14, U16): a run against Eqs. 37-38.
+"""The single-phase Darcy test of seed 004 App. D.1 (digest §11.3, U16): a run against Eqs. 37-38.
 
 Oil displaces oil at a constant rate Q through the Lenormand sample from a flux boundary at x = 0
 to p = 0 at x = L. In the dimensionless variables x_D = x / L, t_D = k K t / (c_v eta L^2),
 p_D = -p k H / (eta L Q) (p gauge, so p_D <= 0, the sign convention of Eq. 37) the pressure and
 flux are Eqs. 37-38, with the digest's fix of the printed boundary condition (d p_D / d x_D = 1 at
-x_D = 0, printed as a time derivative). As the paper does, k is read off the simulated steady state
-(Eq. 21: k = eta L Q / (H dP)) and the storage fraction is c_v = sum V / (L H) (digest §14.1).
+x_D = 0, printed as a time derivative; digest §14 item 3). As the paper does, k is read off the
+simulated steady state (Eq. 21: k = eta L Q / (H dP)) and the storage fraction is
+c_v = sum V / (L H) (digest §3.3). L is the distance between the inflow and outflow domains'
+mean centroids, the length the pressure drops over, not the sample's side.
 A run compares p_in(t) and q_out(t) over the transient and its final (steady) profile; the
 profile in mid-transient is compared in tests/test_solver.py (U16 at t_D ~ 0.5).
 """

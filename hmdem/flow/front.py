@@ -38,17 +38,15 @@ def fill_times(volume, saturation, fill_rate) -> np.ndarray:
 def blocked_front_step(dt: float, margin_start: np.ndarray, margin_end: np.ndarray, chi: float) -> float:
     """Step that just opens the first blocked front pipe (seed 004 Eq. 19, implicit form).
 
-    With every front pipe held shut, p_u - p_d + p_c grows from ``margin_start`` (<= 0) to
-    ``margin_end`` over ``dt``; Eq. 19 is the linear interpolation to zero for the weakest pipe,
-    expanded by chi (1.005 in the paper) so the threshold is just passed. Returns dt unchanged
-    when no pipe would open within dt, or when the weakest pipe is already at its threshold to
-    round-off (it would open within 1e-9 dt: a nearly incompressible invading fluid, e.g. Case 2,
-    closes a 1e-4 Pa deficit in picoseconds, and such a step carries no information).
+    With the front pipes shut at p^n held shut (decisions #5), p_u - p_d + p_c grows from
+    ``margin_start`` (<= 0) to ``margin_end`` over ``dt``; Eq. 19 is the linear interpolation to
+    zero for the first pipe to cross, expanded by chi (1.005 in the paper) so the threshold is
+    just passed. Pipes already at their threshold to round-off (they would open within 1e-9 dt:
+    a nearly incompressible invading fluid, e.g. Case 2, closes a 1e-4 Pa deficit in
+    picoseconds, and such a step carries no information) set no limit, but the others still do.
+    Returns dt unchanged when no other pipe would open within dt.
     """
     crossing = (margin_end > 0) & (margin_start <= 0)
-    if not crossing.any():
-        return dt
-    frac = float((-margin_start[crossing] / (margin_end[crossing] - margin_start[crossing])).min())
-    if frac < THRESHOLD_ROUNDOFF:
-        return dt
-    return min(dt, chi * dt * frac)
+    frac = -margin_start[crossing] / (margin_end[crossing] - margin_start[crossing])
+    frac = frac[frac >= THRESHOLD_ROUNDOFF]
+    return dt if frac.size == 0 else min(dt, chi * dt * float(frac.min()))

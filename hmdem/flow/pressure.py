@@ -36,6 +36,7 @@ class PressureSolution:
     margin: np.ndarray  # per flowing pipe, orient (p_a - p_b) + p_c (front pipes only, else 0)
     passes: int
     increment: np.ndarray  # p^{n+1} - p^n per domain as solved, before p^n + increment is rounded
+    settled: bool = True  # False: the shut pipes cycled or ran out of passes, and their union was held
 
 
 class PressureSystem:
@@ -174,6 +175,7 @@ class PressureSystem:
         dp_old = p_old[self.pipe_a] - p_old[self.pipe_b]
         blocked = blocked & front
         seen: set[bytes] = set()
+        settled = True
         for passes in range(1, MAX_ACTIVE_SET_PASSES + 1):
             used = blocked
             g_open = np.where(blocked, 0.0, conductance)
@@ -199,13 +201,16 @@ class PressureSystem:
             if np.array_equal(new_blocked, blocked):
                 break
             key = np.packbits(new_blocked).tobytes()
-            if key in seen:  # cycling between two sets: keep their union shut (conservative)
-                hold_blocked = True
+            if key in seen or passes == MAX_ACTIVE_SET_PASSES - 1:
+                # cycling, or one pass left: the last pass solves with the union of the last two
+                # sets held shut (conservative), so that the pipes returned as shut are the ones
+                # the solution was solved with (decisions #88)
+                hold_blocked, settled = True, False
                 new_blocked = blocked | new_blocked
             seen.add(key)
             blocked = new_blocked
         flux = (g_open * drive).astype(float)
-        return PressureSolution(p, flux, used, margin, passes, increment)
+        return PressureSolution(p, flux, used, margin, passes, increment, settled)
 
     def floating_components(self, g_open: np.ndarray) -> np.ndarray:
         """Per unknown, a label of its component of open pipes if that component has no open

@@ -1,13 +1,17 @@
 """Time loop of the two-phase pore-network model with fixed grains (seed 004 §3, Fig. 2).
 
-Each step starts from the nominal dt and is shortened by the front criteria: Eq. 19 when
-capillarity blocks the whole front, Eq. 18 so that at most one domain fills per step. The
+Each step starts from the nominal dt and is shortened by the front criteria: Eq. 19 when front
+pipes are shut by capillarity, so that one of them just opens (decisions #5: the paper applies it
+when the whole front is shut), and Eq. 18 so that at most one domain fills per step. The
 implicit scheme solves Eqs. 15-17 (see :mod:`hmdem.flow.pressure`); the explicit reference
 scheme (Eqs. 29-30) uses p^n in the fluxes and a step below the stability limit.
 """
 
 from __future__ import annotations
 
+import contextlib
+import signal
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -60,6 +64,7 @@ class RunRecord:
     eq18_steps: int = 0
     eq19_steps: int = 0
     solves: int = 0
+    unsettled_solves: int = 0  # solves whose shut front pipes cycled or ran out of passes (decisions #88)
     injection_energy: float = 0.0
     dissipated_energy: float = 0.0
     peak_injection_pressure: float = 0.0
@@ -82,8 +87,7 @@ class RunRecord:
 
     def injection_pressure(self) -> tuple[np.ndarray, np.ndarray]:
         """(t, mean injection pressure) of the recorded steps (timeseries.csv's t, p_in_mean)."""
-        t, p = self.series("t", "p_in_mean")
-        return t, p
+        return tuple(self.series("t", "p_in_mean"))
 
     def step_energies(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(t, dt, p_in, dE_in, dE_v) of the recorded steps: the injection energy p_in Q dt
@@ -100,6 +104,30 @@ class RunRecord:
 
     columns = ("t", "dt", "p_in_mean", "q_in", "q_out", "saturation", "energy", "dissipation", "n_invaded", "limiter",
                "wall_s")
+
+
+@contextlib.contextmanager
+def deferred_interrupts():
+    """Hold Ctrl-C (SIGINT) and SIGTERM until the block ends, then deliver them to the handlers
+    that were there, so that an accepted step updates the state, the records and the grains
+    together: an interrupt that landed half-way left a run directory whose state was a step
+    ahead of its last time-series row (found in review). Outside the main thread, where handlers
+    cannot be set, the block runs as it is."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = []
+    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    previous = {sig: handler for sig, handler in previous.items() if handler is not None}  # None: set from C
+    for sig in previous:
+        signal.signal(sig, lambda signum, frame: held.append(signum))
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    for signum in held:
+        signal.raise_signal(signum)
 
 
 class FlowModel:
@@ -185,6 +213,7 @@ class FlowModel:
         source = self.source - self.volume_change / dt
         sol = self.system.solve(storage, state.pressure, source, g, orient, pc, blocked, hold_blocked=hold)
         self.record.solves += sol.passes
+        self.record.unsettled_solves += not sol.settled
         fill = self._fill_rates(state, sol, storage, orient, dt)
         return sol, fill
 
@@ -275,11 +304,11 @@ class FlowModel:
                 dt_hi = min(dt_hi, dt)
                 t_fill = fr.fill_times(self.volume, state.saturation, fill)
                 target = int(np.argmin(np.where(over, t_fill, np.inf)))
-            elif s_new.max() >= 1.0 - fr.FILL_TOLERANCE:
-                # nothing overfills and some domain is full. Once a domain is invaded (S = 1)
-                # this holds for any trial that overfills nothing, so the step may fill none
-                # (cf1: 422 of 989 Eq. 18 steps). Requiring the target itself to fill changes cf1
-                # (D_f 1.778 -> 1.760, S_bt 0.338 -> 0.358): an open question (issue 2 notes)
+            elif s_new[target] >= 1.0 - fr.FILL_TOLERANCE:
+                # nothing overfills and the target is full (U10). Testing any domain instead let
+                # an invaded one (S = 1) pass every trial: 58 of the 135 Eq. 18 steps in cf1's
+                # first 150 left the target short, at S down to 0.99, for a tiny step to top up
+                # (decisions #89)
                 return sol, fill, dt, True
             elif dt > dt_lo:
                 dt_lo, under = dt, (sol, fill, dt)
@@ -346,7 +375,8 @@ class FlowModel:
                 sol, fill, dt, limiter = step(state, blocked)
                 self._check_fluid_left(state, sol, dt)
                 blocked = sol.blocked
-                self._accept(state, sol, fill, dt, limiter)
+                with deferred_interrupts():  # a step is accepted whole, or not at all
+                    self._accept(state, sol, fill, dt, limiter)
                 if progress is not None:
                     progress(self, state)
         except KeyboardInterrupt:
