@@ -14,6 +14,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from .network.packing import CONTACT_STIFFNESS, GRAIN_FRICTION
 from .rundir import RunDirectoryTaken
 
@@ -263,6 +265,7 @@ def exists(path: Path) -> bool:
 def read_packing(path: Path):
     """The ``--packing`` file as a :class:`~hmdem.network.packing.DiscPacking`; a missing or
     unreadable file is an :class:`InputError`."""
+    from .network.contact_graph import contacts_off_triangulation
     from .network.packing import DiscPacking
 
     if Path(path).is_dir():
@@ -270,12 +273,18 @@ def read_packing(path: Path):
     if not Path(path).is_file():
         raise InputError(f"--packing: no such file {str(path)!r}")
     try:
-        return DiscPacking.load(path)
+        packing = DiscPacking.load(path)
     except KeyError:  # an npz of something else, e.g. a run directory's state.npz
         raise InputError(f"--packing: {str(path)!r} is not a packing (one holds centres, radii, contacts, box, "
                          "seed); write one with python -m hmdem.dem.packing or hmdem.dem.compaction") from None
     except Exception as exc:  # not an npz at all
         raise InputError(f"--packing: cannot read a packing from {str(path)!r} ({type(exc).__name__})") from None
+    off = contacts_off_triangulation(packing.centres, np.sort(packing.contacts, axis=1))
+    if len(off):
+        raise InputError(f"--packing: {len(off)} of its contacts (e.g. grains {off[0][0]} and {off[0][1]}) are not "
+                         "edges of the centres' Delaunay triangulation: a grain sits in their throat, and the pore "
+                         "network cannot have them as pipes")
+    return packing
 
 
 def read_compacted_packing(path: Path):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import platform
+import shlex
 from dataclasses import asdict
 from pathlib import Path
 
@@ -120,7 +121,7 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
     net = sc.net
     setup = {k: v for k, v in asdict(sc.setup).items() if k != "fluids"}
     config = {
-        "run": {"command": "python -m hmdem.hele_shaw " + " ".join(argv), "hmdem_version": __version__,
+        "run": {"command": "python -m hmdem.hele_shaw " + shlex.join(argv), "hmdem_version": __version__,
                 "python": platform.python_version(), "numpy": np.__version__, "case": sc.case.name, "seed": seed},
         "case": {"title": sc.case.title, "geometry": sc.case.geometry, "ca_star": sc.ca_star,
                  "mean_aperture_m": sc.case.mean_aperture, "aperture_spread": sc.case.aperture_spread,

@@ -3,6 +3,7 @@
 import hashlib
 import json
 import os
+import shlex
 import subprocess
 import sys
 import tomllib
@@ -135,14 +136,28 @@ def test_an_empty_out_is_refused(tmp_path, monkeypatch, capsys):
 
 def test_config_toml_names_the_packing_by_path_and_content(tmp_path):
     # a packing given by --packing is recorded by its absolute path and the SHA-256 of its bytes,
-    # so a run can be matched to its sample after the file is moved or regenerated
-    packing = tmp_path / "sample.npz"
+    # so a run can be matched to its sample after the file is moved or regenerated; the command
+    # is shell-quoted, so that it replays with blanks in a path (found in review)
+    packing = tmp_path / "my sample.npz"
     packing.write_bytes((DATA / "lenormand_packing.npz").read_bytes())
-    out = tmp_path / "run"
-    assert main(["linear", "--packing", str(packing), "--max-steps", "1", "--out", str(out), "--quiet"]) == 0
-    recorded = tomllib.loads((out / "config.toml").read_text())["packing"]
-    assert recorded["file"] == str(packing.resolve())
-    assert recorded["sha256"] == hashlib.sha256(packing.read_bytes()).hexdigest()
+    out = tmp_path / "my run"
+    argv = ["linear", "--packing", str(packing), "--max-steps", "1", "--out", str(out), "--quiet"]
+    assert main(argv) == 0
+    config = tomllib.loads((out / "config.toml").read_text())
+    assert config["packing"]["file"] == str(packing.resolve())
+    assert config["packing"]["sha256"] == hashlib.sha256(packing.read_bytes()).hexdigest()
+    assert shlex.split(config["run"]["command"]) == ["python", "-m", "hmdem.hele_shaw", *argv]
+
+
+def test_a_packing_with_a_grain_in_a_contacts_throat_is_refused(tmp_path, capsys):
+    # its network would lose the contact and merge two pores (tests/test_network.py)
+    from test_network import throat_packing
+
+    throat_packing().save(tmp_path / "throat.npz")
+    assert main(["linear", "--packing", str(tmp_path / "throat.npz"), "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err
+    assert "--packing: 1 of its contacts (e.g. grains 0 and 1) are not edges of the centres' Delaunay" in err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "run").exists()
 
 
 def test_existing_out_is_refused(tmp_path, capsys):

@@ -42,6 +42,21 @@ def main_component(n_grains: int, contacts: np.ndarray) -> np.ndarray:
     return contacts[label[contacts[:, 0]] == np.argmax(sizes)]
 
 
+def delaunay_edge_keys(simplices: np.ndarray, n: int) -> np.ndarray:
+    """(t, 3) keys i * n + j (i < j) of each triangle's edges, edge k opposite vertex k."""
+    ea, eb = simplices[:, [1, 2, 0]], simplices[:, [2, 0, 1]]
+    return np.minimum(ea, eb).astype(np.int64) * n + np.maximum(ea, eb)
+
+
+def contacts_off_triangulation(centres: np.ndarray, contacts: np.ndarray) -> np.ndarray:
+    """Contacts (i < j) that are not edges of the centres' Delaunay triangulation: a grain sits
+    in their throat, and the network, whose pipes are Delaunay edges, would lose them and merge
+    the two pores they separate. None in the shipped packings."""
+    n = len(centres)
+    keys = contacts[:, 0].astype(np.int64) * n + contacts[:, 1]
+    return contacts[~np.isin(keys, delaunay_edge_keys(Delaunay(centres).simplices, n))]
+
+
 def _triangle_areas(points: np.ndarray, simplices: np.ndarray) -> np.ndarray:
     a, b, c = points[simplices[:, 0]], points[simplices[:, 1]], points[simplices[:, 2]]
     return 0.5 * np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1]))
@@ -55,7 +70,9 @@ def build_contact_network(centres: np.ndarray, radii: np.ndarray, contacts: np.n
 
     Pipes have length r1 + r2 (seed 004 Eq. 1); apertures are left at zero for the caller
     (fixed grains: :func:`hmdem.network.apertures.uniform_apertures`). Contacts of clusters not
-    connected to the main contact graph are dropped so that the Euler check holds.
+    connected to the main contact graph are dropped so that the Euler check holds. A contact
+    that is not a Delaunay edge (:func:`contacts_off_triangulation`) is a ValueError: it could
+    not be a pipe, and the Euler check would not notice its two pores merged.
     """
     centres = np.asarray(centres, float)
     radii = np.asarray(radii, float)
@@ -66,12 +83,14 @@ def build_contact_network(centres: np.ndarray, radii: np.ndarray, contacts: np.n
     tri = Delaunay(centres)
     simp, nbr = tri.simplices, tri.neighbors
     n_tri = len(simp)
-    # triangle edge k is opposite vertex k
-    ea = simp[:, [1, 2, 0]]
-    eb = simp[:, [2, 0, 1]]
-    lo, hi = np.minimum(ea, eb), np.maximum(ea, eb)
-    keys = lo.astype(np.int64) * n + hi
+    keys = delaunay_edge_keys(simp, n)  # triangle edge k is opposite vertex k
+    lo, hi = keys // n, keys % n
     is_contact = np.isin(keys, contact_keys)
+    missing = ~np.isin(contact_keys, keys)
+    if missing.any():
+        i, j = contacts[np.argmax(missing)]
+        raise ValueError(f"{int(missing.sum())} contacts are not edges of the centres' Delaunay triangulation "
+                         f"(e.g. grains {i} and {j}: a grain sits in their throat), so they cannot bound pores")
 
     # glue triangles across non-contact edges; node n_tri is the outer face
     t_idx = np.repeat(np.arange(n_tri)[:, None], 3, axis=1)

@@ -32,7 +32,7 @@ class Network:
     Arrays (n domains, m pipes):
       domain_centroid (n, 2) m; domain_volume (n,) m^3 per m of depth;
       pipe_domains (m, 2) int, OUTSIDE for the outer face; pipe_length (m,) m;
-      pipe_aperture (m,) m; pipe_grains (m, 2) int (grain ids, -1 for lattices);
+      pipe_aperture (m,) m; pipe_grains (m, 2) int (grain ids: the lattice's sites too);
       inlet_domains, outlet_domains: int index arrays.
     Optional drawing data: ``triangles`` (t, 3) vertex ids into ``points`` with
     ``triangle_domain`` (t,), the domain each triangle belongs to (OUTSIDE for the outer face),
