@@ -252,6 +252,7 @@ def run_linear(args) -> int:
     summary = write_run(out, sc, model, state, rec, seed=args.seed, argv=recorded_argv(args),
                         snapshots=None if snapshots is None else snapshots.taken,
                         packing_file=None if case.geometry == "lattice" else args.packing or default_packing_path(),
+                        packing_name=getattr(args, "packing_recorded", None),  # set by the sweep runner
                         summary_extra=None if darcy is None else darcy.summary(),
                         extra_files=darcy.write_figure if darcy is not None and darcy.steady else None)
     print(f"{case.name}: {rec.status} at t = {state.t:.4g} s after {rec.steps} steps; regime: {summary['regime']}, "

@@ -97,15 +97,16 @@ def summarize(sc, model, state, rec, d_f: float | None = None) -> dict:
     }
 
 
-def packing_record(path) -> dict:
-    """config.toml's [packing]: the file's absolute path and the SHA-256 of its bytes."""
+def packing_record(path, name: str | None = None) -> dict:
+    """config.toml's [packing]: ``name`` (default: the file's absolute path) and the SHA-256 of
+    the file's bytes."""
     path = Path(path)
-    return {"file": str(path.resolve()), "sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
+    return {"file": name or str(path.resolve()), "sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
 
 
 def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: dict | None = None,
               extra_files=None, overlay=None, config_extra: dict | None = None, snapshots=None,
-              packing_file=None) -> dict:
+              packing_file=None, packing_name: str | None = None) -> dict:
     """Write every file of the run directory into a temporary folder, then rename it to ``out``.
 
     Couplings add to the contract: ``summary_extra`` (keys added to or replacing the summary's),
@@ -113,7 +114,8 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
     the pattern (e.g. opened contacts), ``config_extra`` more config.toml tables.
     ``snapshots`` (a list of :class:`~hmdem.snapshots.Snapshot`, or None): the ParaView time
     series, closed by the final state (hmdem/snapshots.py). ``packing_file``: the grains' file,
-    which config.toml's [packing] names with its SHA-256 (the shipped one too).
+    which config.toml's [packing] names (as ``packing_name`` if given: a sweep worker reads a
+    scratch copy) with its SHA-256 (the shipped one too).
     """
     extra = summary_extra or {}
     summary = summarize(sc, model, state, rec, extra.get("fractal_dimension"))
@@ -131,7 +133,7 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
         **(config_extra or {}),
     }
     if packing_file is not None:
-        config["packing"] = packing_record(packing_file)
+        config["packing"] = packing_record(packing_file, packing_name)
     with atomic_run_directory(out) as tmp:
         write_toml(tmp / "config.toml", config)
         write_json(tmp / "summary.json", summary)

@@ -285,6 +285,49 @@ def test_an_interrupted_sweep_finishes_with_the_same_table(reference, packing, t
     assert read_table(out / "sweep.csv") == read_table(reference[1] / "sweep.csv")
 
 
+def test_run_point_takes_only_its_own_run_directory(packing, tmp_path):
+    # the YADE script's out (default runs/lenormand-batch/<run id>, the id without the packing):
+    # a finished run of this point is its result; another point's run, a run on other packing
+    # bytes, or a directory of other files is refused and left as it is (a new-user pass: a cf1
+    # run was reported as the point's, and a directory of other files was wiped)
+    import shutil
+    import tomllib
+
+    from hmdem.sweep.runner import NotThisPoint, run_point
+
+    point, out = SweepPoint(2.0, 2.0, 0), tmp_path / "run"
+    first = run_point(point, out, str(packing))
+    assert run_point(point, out, str(packing)) == first  # the finished run is the result
+    assert tomllib.loads((out / "config.toml").read_text())["packing"]["file"] == str(packing.resolve())
+    other_bytes = tmp_path / "other.npz"
+    tiny_packing(seed=1).save(other_bytes)
+    precious = tmp_path / "precious"
+    precious.mkdir()
+    (precious / "notes.txt").write_text("keep")
+    shutil.copytree(out, tmp_path / "copy")
+    for other, where, pk in ((SweepPoint(2.0, 1.0, 0), out, packing), (SweepPoint(2.0, 2.0, 1), out, packing),
+                             (point, out, other_bytes), (point, precious, packing)):
+        with pytest.raises(NotThisPoint, match="exists and is not a run of point"):
+            run_point(other, where, str(pk))
+    assert (precious / "notes.txt").read_text() == "keep"
+    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in (tmp_path / "copy").iterdir())
+
+
+def test_a_sweep_run_names_the_packing_the_client_gave(packing):
+    # a worker runs on a scratch copy of the packing; config.toml names the client's file (by
+    # absolute path, as the recorded command does) with the bytes' SHA-256
+    import hashlib
+    import io
+    import tarfile
+    import tomllib
+
+    summary, packed = run_packed(SweepPoint(2.0, 2.0, 0), packing.read_bytes(), str(packing))
+    with tarfile.open(fileobj=io.BytesIO(packed)) as tar:
+        config = tomllib.loads(tar.extractfile("config.toml").read().decode())
+    assert config["packing"] == {"file": str(packing), "sha256": hashlib.sha256(packing.read_bytes()).hexdigest()}
+    assert f"--packing {packing}" in config["run"]["command"]
+
+
 # ---- yade-batch ----------------------------------------------------------------------------
 @pytest.mark.yade
 def test_yade_batch_runs_the_shipped_table_and_collect_aggregates_it(packing, tmp_path):
@@ -367,11 +410,14 @@ def test_collect_takes_only_lenormand_runs_and_writes_nothing_without_one(tmp_pa
     rows = read_table(tmp_path / "sweep.csv")
     assert [(r["run"], r["status"], r["regime"]) for r in rows] == [("vf", "max_steps", "undetermined")]
     assert "2 other run directories left out" in capsys.readouterr().err
-    before = sorted(p.name for p in (tmp_path / "chen").iterdir())
-    assert sweep_main(["collect", str(tmp_path / "chen")]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "no run directories of linear two-phase" in err[0]
-    assert sorted(p.name for p in (tmp_path / "chen").iterdir()) == before  # nothing written
+    # a run directory itself, a Lenormand one too (a second new-user pass: collect runs/cf1 wrote
+    # its tables among the run's files), is refused with nothing written
+    for case in ("chen", "vf"):
+        before = sorted(p.name for p in (tmp_path / case).iterdir())
+        assert sweep_main(["collect", str(tmp_path / case)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "is a run directory; give the directory that holds the runs" in err[0]
+        assert sorted(p.name for p in (tmp_path / case).iterdir()) == before
 
 
 def test_runs_kept_aside_and_partial_writes_are_not_read_as_runs(tmp_path):

@@ -6,7 +6,9 @@
 
 Parameters (``readParamsFromTable``; defaults in brackets): logM [2] = log10(eta_inv / eta_def),
 logCa [1] = log10 Ca*, seed [0] (aperture field), packing [shipped 65 mm packing], out
-[runs/lenormand-batch/<run id>]. The run is the one ``python -m hmdem.sweep lenormand`` makes
+[runs/lenormand-batch/<run id>]. An out that holds this point's finished run (same M, Ca*, seed
+and packing bytes) is its result; one of an interrupted run is run again; any other existing
+directory is refused. The run is the one ``python -m hmdem.sweep lenormand`` makes
 for that point (``python -m hmdem.hele_shaw linear --case sd --viscosity-ratio ...``), in the
 same run-directory layout. The yade launcher runs Debian's Python, so the repository root goes
 on sys.path first and the project venv's pure-Python packages last, behind Debian's numpy
@@ -31,7 +33,7 @@ read_yade_table("yade_scripts/hele_shaw_linear.py", utils.readParamsFromTable, l
 from yade.params import table  # noqa: E402
 
 from hmdem.sweep.grid import SweepPoint  # noqa: E402
-from hmdem.sweep.runner import RunFailed, run_point  # noqa: E402
+from hmdem.sweep.runner import NotThisPoint, RunFailed, run_point  # noqa: E402
 
 point = SweepPoint(float(table.logM), float(table.logCa), int(table.seed))
 out = Path(table.out or f"runs/lenormand-batch/{point.run_id}")
@@ -41,7 +43,7 @@ try:
 except RunFailed as exc:  # one line and the run's own exit status (yade-batch logs 130 / 143)
     print(f"{exc}; run directory {out}", file=sys.stderr)
     sys.exit(exc.exit_status)
-except InputError as exc:  # e.g. a table's packing that the linear run refuses: one line, exit 2
+except (InputError, NotThisPoint) as exc:  # a packing the run refuses, an out of another run: one line, exit 2
     print(f"yade_scripts/hele_shaw_linear.py: {exc}", file=sys.stderr)
     sys.exit(2)
 print(f"{point.run_id}: {summary['status']}, {summary['regime']}, D_f = {summary['fractal_dimension']}; run directory {out}")

@@ -161,6 +161,8 @@ def run_lenormand(args) -> int:
 def run_collect(args) -> int:
     if not args.dir.is_dir():
         raise InputError(f"dir: no such directory {str(args.dir)!r}")
+    if (args.dir / "summary.json").is_file():  # its tables would land among one run's files
+        raise InputError(f"dir: {str(args.dir)!r} is a run directory; give the directory that holds the runs")
     from .table import collect, other_run_directories
 
     rows = collect(args.dir)
@@ -174,7 +176,7 @@ def run_collect(args) -> int:
     if others:
         print(f"{PROG}: note: {len(rows)} Lenormand runs collected" + skipped, file=sys.stderr)
     write_tables(args.dir, rows)
-    print(f"{len(rows)} runs -> {args.dir / 'sweep.csv'}, {args.dir / 'phase_diagram.png'}")
+    print(f"{len(rows)} run{'' if len(rows) == 1 else 's'} -> {args.dir / 'sweep.csv'}, {args.dir / 'phase_diagram.png'}")
     return 0
 
 

@@ -102,7 +102,7 @@ def run_sweep(manifest: Manifest, packing: Path | None = None, workers: int | No
     from distributed import as_completed
 
     packing_bytes = Path(packing).read_bytes() if packing else None
-    packing_name = str(packing) if packing else None
+    packing_name = str(Path(packing).resolve()) if packing else None  # recorded: valid from anywhere
     client, cluster = start_client(workers, scheduler)
     try:
         futures = {}

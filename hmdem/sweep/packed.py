@@ -55,5 +55,5 @@ def run_packed(point: SweepPoint, packing: bytes | None = None, packing_name: st
             packing_path.write_bytes(packing)
         out = Path(scratch) / point.run_id
         recorded = cli_arguments(point, Path("runs") / point.run_id, packing_name)
-        summary = run_point(point, out, packing_path, recorded)
+        summary = run_point(point, out, packing_path, recorded, recorded_packing=packing_name)
         return summary, pack_directory(out)

@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import io
 import json
+import math
 import shutil
+import tomllib
 from contextlib import redirect_stdout
 from pathlib import Path
 
@@ -47,16 +49,56 @@ class RunFailed(RuntimeError):
         self.exit_status = exit_status
 
 
-def run_point(point: SweepPoint, out: Path, packing: str | None = None, recorded_as: list[str] | None = None) -> dict:
+class NotThisPoint(ValueError):
+    """``out`` exists and is not a run directory of the point asked for."""
+
+
+def point_of_run(run_dir: Path) -> tuple[float, float, int, str] | None:
+    """(M, Ca*, seed, packing SHA-256) a run directory was run with, from its config.toml; None
+    if it is not a linear run directory of the sweep's base case."""
+    path = Path(run_dir) / "config.toml"
+    if not path.is_file():
+        return None
+    config = tomllib.loads(path.read_text())
+    if config.get("run", {}).get("case") != BASE_CASE or "packing" not in config:
+        return None
+    fluids = config["fluids"]
+    return (fluids["viscosity_inv"] / fluids["viscosity_def"], config["case"]["ca_star"], config["run"]["seed"],
+            config["packing"]["sha256"])
+
+
+def check_out_is_this_point(out: Path, point: SweepPoint, packing: str | None) -> None:
+    """A :class:`NotThisPoint` unless ``out`` holds a run of ``point`` on ``packing``'s bytes (the
+    shipped packing for None): a run there of another point, or any other directory, is not
+    taken as this point's result, nor removed to make room (found in a new-user pass: the YADE
+    script reported a cf1 run as its point's, and wiped a directory of other files)."""
+    from ..cases import default_packing_path
+    from ..report import packing_record
+
+    recorded = point_of_run(out)
+    expected = (10.0 ** point.log_m, 10.0 ** point.log_ca_star, point.seed,
+                packing_record(packing or default_packing_path())["sha256"])
+    if recorded is None or not (math.isclose(recorded[0], expected[0], rel_tol=1e-9)
+                                and math.isclose(recorded[1], expected[1], rel_tol=1e-9)
+                                and recorded[2:] == expected[2:]):
+        raise NotThisPoint(f"--out: {str(out)!r} exists and is not a run of point {point.run_id} on this packing; "
+                           "choose a new run directory")
+
+
+def run_point(point: SweepPoint, out: Path, packing: str | None = None, recorded_as: list[str] | None = None,
+              recorded_packing: str | None = None) -> dict:
     """Run one point into ``out`` (written atomically by the run itself); its summary.
 
-    ``recorded_as``: the command line config.toml records (default: the one run here). A run
-    directory left by an interrupted or diverged run is replaced. Raises on any failure; the sweep records
-    the error text."""
+    ``recorded_as``: the command line config.toml records (default: the one run here);
+    ``recorded_packing``: the packing path its [packing] names (default: ``packing``'s), for a
+    worker that reads a scratch copy. An existing ``out`` must be a run of this point
+    (:func:`check_out_is_this_point`): a finished one is its result, one left by an interrupted
+    or diverged run is replaced. Raises on any failure; the sweep records the error text."""
     from ..hele_shaw import build_parser, run_linear
 
     out = Path(out)
     if out.exists():
+        check_out_is_this_point(out, point, packing)
         finished = read_summary(out)
         if finished is not None:
             return finished
@@ -64,6 +106,7 @@ def run_point(point: SweepPoint, out: Path, packing: str | None = None, recorded
     argv = cli_arguments(point, out, packing)
     args = build_parser().parse_args(argv)
     args.argv = recorded_as or argv  # config.toml's command (hele_shaw.recorded_argv)
+    args.packing_recorded = recorded_packing
     with redirect_stdout(io.StringIO()):  # the run's two result lines; the sweep reports instead
         code = run_linear(args)
     summary = read_summary(out, finished_only=False)
