@@ -53,6 +53,7 @@ class Case:
     aperture_spread: float = 0.7
     contact_gap: float = NEAR_CONTACT_GAP  # gaps below this fraction of the smaller radius are contacts (#2)
     expected_regime: str = ""  # the paper's label, for reference only (never used to label a run)
+    dt_follows_rate: bool = False  # scale dt by the named case's rate over this one's (scenario.build_scenario)
     notes: str = ""
     extra: dict = field(default_factory=dict)
 

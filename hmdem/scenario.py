@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .cases import Case, ca_star_from_rate, default_packing_path, rate_from_ca_star
+from .cases import CASES, Case, ca_star_from_rate, default_packing_path, rate_from_ca_star
 from .flow.simulation import FlowSetup
 from .network.packing import DiscPacking
 from .network import (Network, build_contact_network, find_contacts, central_injection_boundaries, linear_flow_boundaries,
@@ -63,5 +63,9 @@ def build_scenario(case: Case, seed: int = 0, inlet: str = "manifold", scheme: s
     else:
         ca = case.ca_star
         rate = rate_from_ca_star(ca, case.fluids, sigma, length, case.mean_aperture)
-    setup = FlowSetup(case.fluids, rate, case.dt, inlet=inlet, scheme=scheme, two_phase=case.two_phase, t_max=case.t_max)
+    dt = case.dt
+    if case.dt_follows_rate:  # the named case's step, as the same fraction of the fill time
+        named = CASES[case.name]
+        dt = named.dt * rate_from_ca_star(named.ca_star, named.fluids, sigma, length, named.mean_aperture) / rate
+    setup = FlowSetup(case.fluids, rate, dt, inlet=inlet, scheme=scheme, two_phase=case.two_phase, t_max=case.t_max)
     return Scenario(case, net, setup, sigma, length, ca, radii)

@@ -160,6 +160,25 @@ def test_a_packing_with_a_grain_in_a_contacts_throat_is_refused(tmp_path, capsys
     assert len(err.strip().splitlines()) == 1 and not (tmp_path / "run").exists()
 
 
+def test_the_nominal_step_follows_the_rate_however_it_is_given():
+    # dt x Q_case / Q without --dt, whether Q comes from --ca-star, --viscosity-ratio, --rate or
+    # --mean-aperture (a new-user pass: vf at Ca* 1.9e-6 given as its --rate kept dt = 0.05 s
+    # and took 20 times the steps); --dt wins
+    from hmdem.hele_shaw import build_parser, make_case
+    from hmdem.scenario import build_scenario
+
+    def setup(*flags):
+        return build_scenario(make_case(build_parser().parse_args(["linear", "--case", "vf", *flags]))).setup
+
+    shipped, slower = setup(), setup("--ca-star", "1.9e-6")
+    assert slower.rate == pytest.approx(shipped.rate / 100, rel=1e-12)
+    assert slower.dt == pytest.approx(100 * shipped.dt, rel=1e-12)
+    assert setup("--rate", repr(float(slower.rate))).dt == pytest.approx(slower.dt, rel=1e-12)
+    assert setup("--viscosity-ratio", repr(2 * 1.8e-5)).dt == pytest.approx(2 * shipped.dt, rel=1e-12)
+    assert setup("--mean-aperture", "0.84e-3").dt == pytest.approx(shipped.dt / 2, rel=1e-12)
+    assert setup("--rate", repr(float(slower.rate)), "--dt", "0.05").dt == 0.05
+
+
 def test_existing_out_is_refused(tmp_path, capsys):
     (tmp_path / "run").mkdir()
     assert main(["linear", "--out", str(tmp_path / "run")]) == 2
