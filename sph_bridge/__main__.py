@@ -102,7 +102,8 @@ def build_parser() -> OneLineParser:
     p.add_argument("--s-sf", type=non_negative_number, help="solid-fluid pairwise strength [N]")
     p.add_argument("--c0", type=positive_number, help="speed of sound [m/s] (default: seed 000 Table 1)")
     p.add_argument("--anneal", type=non_negative_number,
-                   help=ANNEAL_HELP + " (default: the calibration's, 0 for the shipped ones and --s-ff/--s-sf)")
+                   help=ANNEAL_HELP + " (default: the calibration's own, 0.3 for the shipped ones; 0 with "
+                        "--s-ff/--s-sf)")
     p.add_argument("--seed", type=int_at_least(0), default=0, help="seed of the annealing's kicks (default 0)")
     p.add_argument("--checkpoint", type=Path, metavar="DIR",
                    help="save the relaxation in DIR after every shape sample; the same command run again "
@@ -145,15 +146,17 @@ def build_parser() -> OneLineParser:
 
 
 def progress_bar(args, total: float, unit: str = "s", extend: float = 0.0, desc: str | None = None,
-                 leave: bool = True):
+                 leave: bool = True, start: float = 0.0):
     """A tqdm bar over simulated time (None with --quiet) and the callback that advances it.
     ``extend`` > 0: a run that goes on past ``total`` (a drop not settled by its minimum
-    duration) moves the bar's end on by this much at a time, so it never reads over 100 %."""
+    duration) moves the bar's end on by this much at a time, so it never reads over 100 %.
+    ``start``: where a resumed run begins; a bar opened at 0 took the resumed span as its first
+    update, and tqdm then waited for another jump that size before it redrew (a new-user pass)."""
     if args.quiet:
         return None, None
     from tqdm import tqdm
 
-    bar = open_bar(tqdm, total=total, desc=desc or args.command, unit=unit, leave=leave,
+    bar = open_bar(tqdm, total=max(total, start), initial=start, desc=desc or args.command, unit=unit, leave=leave,
                    bar_format="{l_bar}{bar}| {n:.4f}/{total:.4f} " + unit + " [{elapsed}<{remaining}]")
 
     def advance(sim):
@@ -265,9 +268,11 @@ def droplet_parameters(args):
                 "target_contact_angle_deg")
         try:
             cal = json.loads((args.calibration / "summary.json").read_text())
+            if cal.get("status") != "finished":  # an interrupted one has no strengths yet
+                raise ValueError(f"its status is {cal.get('status')!r}")
             values = {k: float(cal[k]) for k in keys}
-            if cal.get("status") != "finished" or not all(map(math.isfinite, values.values())):
-                raise ValueError(cal.get("status"))
+            if not all(map(math.isfinite, values.values())):
+                raise ValueError("it records a value that is not finite")
         except (OSError, ValueError, KeyError, TypeError) as exc:
             raise InputError(f"--calibration: {str(args.calibration)!r} is not a finished calibrate run "
                              f"directory ({exc.__class__.__name__}: {exc})") from None
@@ -349,7 +354,7 @@ def run_droplet(args) -> int:
                   f"samples ({sim.record.steps} steps)", file=sys.stderr)
     # the bar runs to the shortest relaxation; one that has not settled by then moves it on to its next settle check
     shortest, extend = droplet.relaxation_span(t_min, params.anneal > 0)
-    bar, advance = progress_bar(args, shortest, extend=extend)
+    bar, advance = progress_bar(args, shortest, extend=extend, start=sim.t)
     status, settled = "finished", False
 
     def on_sample(s, k):

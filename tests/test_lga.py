@@ -302,6 +302,12 @@ def test_poiseuille_run_directory(poiseuille):
     assert summary["status"] == "finished" and len(summary["drives"]) == 3
     rows = (out / "timeseries.csv").read_text().splitlines()
     assert rows[0] == "step,drive,flow_rate,force_applied_per_node,force_friction_per_node" and len(rows) > 100
+    # ParaView's field: walls and mirrors at rest, so the colour range is the fluid's (a new-user pass)
+    import meshio
+
+    field = meshio.read(out / "field.vtu").point_data
+    fluid = field["kind"] == 0
+    assert np.all(field["velocity"][~fluid] == 0.0) and 0.0 < np.abs(field["velocity"][fluid]).max() < 0.5
 
 
 def test_poiseuille_profile_is_a_parabola(poiseuille):

@@ -443,6 +443,15 @@ def test_droplet_bad_input_is_one_line(tmp_path):
         lines = proc.stderr.strip().splitlines()
         assert proc.returncode == 2 and len(lines) == 1 and name in lines[0], (args, proc.stderr)
         assert not bad.exists()
+    # an interrupted calibration has no strengths: said so, not float(None)'s TypeError (a new-user pass)
+    interrupted = tmp_path / "cal"
+    interrupted.mkdir()
+    (interrupted / "summary.json").write_text('{"status": "interrupted", "s_ff_n": null, "dx_m": 0.0005}')
+    proc = subprocess.run(cmd + ["droplet", "--calibration", str(interrupted), "--out", str(tmp_path / "bad")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2 and proc.stderr.strip() == (
+        f"python -m sph_bridge: --calibration: {str(interrupted)!r} is not a finished calibrate run directory "
+        "(ValueError: its status is 'interrupted')")
 
 
 def stand_in_calibration_trials(monkeypatch, measured=None):

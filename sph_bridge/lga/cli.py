@@ -21,6 +21,7 @@ the other channels whole, with status "failed" and exit status 1.
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 import time
 from pathlib import Path
@@ -117,8 +118,11 @@ def build_parser() -> OneLineParser:
 
 
 class Progress:
-    """A tqdm bar over lattice steps (silent with --quiet). With ``channels`` > 1 it also counts
-    the finished channels, since extended averaging windows keep the bar near its (growing) total."""
+    """A tqdm bar over lattice steps (silent with --quiet), to ``total``, the most the run can
+    take (:meth:`~sph_bridge.lga.studies.Plan.most_steps`), so that its ETA is an upper bound: a
+    total of the shortest windows sat at 100 % for most of a run whose windows were extended
+    for precision (a new-user pass). It fills when the run finishes. With ``channels`` > 1 it
+    also counts the finished channels."""
 
     def __init__(self, args, total: int, channels: int = 0):
         self.bar = None
@@ -143,15 +147,18 @@ class Progress:
         if self.bar is not None and self.channels > 1:
             self.bar.set_postfix_str(f"channels {self.channels_done}/{self.channels}")
 
-    def close(self) -> None:
+    def close(self, finished: bool = False) -> None:
         if self.bar is not None:
+            if finished:  # windows shorter than the longest they could take: the run is done
+                self.bar.total = self.bar.n
+            self.bar.refresh()
             self.bar.close()
 
 
 def run_directory(args, config: dict, summary: dict, timeseries: list, write_figures) -> Path:
     out = args.out_dir
     with atomic_run_directory(out) as tmp:
-        write_toml(tmp / "config.toml", {"run": {"command": f"{PROG} " + " ".join(args.argv), "case": args.command},
+        write_toml(tmp / "config.toml", {"run": {"command": f"{PROG} " + shlex.join(args.argv), "case": args.command},
                                          **config})
         write_json(tmp / "summary.json", summary)
         write_rows(tmp / "timeseries.csv", ("step", "drive", "flow_rate", "force_applied_per_node",
@@ -164,7 +171,7 @@ def run_channels(args, channel_drives, plan_of) -> str:
     """Run each (name, channel, forcings), in turn or on ``args.workers`` processes, under one
     progress bar; returns the status: "interrupted" after Ctrl-C or SIGTERM, else "failed" if a
     worker was lost (``args.status_message`` says which), else "finished"."""
-    total = sum(plan_of(ch).steps(len(forcings)) for _, ch, forcings in channel_drives)
+    total = sum(plan_of(ch).most_steps(len(forcings)) for _, ch, forcings in channel_drives)
     bar = Progress(args, total, channels=len(channel_drives))
     jobs = [(channel, forcings, plan_of(channel), args.density, args.seed + k)
             for k, (_, channel, forcings) in enumerate(channel_drives)]
@@ -184,7 +191,7 @@ def run_channels(args, channel_drives, plan_of) -> str:
         except KeyboardInterrupt:
             stopped = True
     args.timeseries = [(s[0], name, *s[1:]) for (name, _, _), rows in zip(channel_drives, series) for s in rows]
-    bar.close()
+    bar.close(finished=not stopped and not lost)
     args.status_message = "; ".join(lost)
     for line in lost:
         print(f"python -m sph_bridge lga: {line}; its channel has no results", file=sys.stderr)
@@ -410,7 +417,7 @@ def run_nonlinear(args) -> int:
     def plan_of(channel):  # strong drives: a shorter window reaches 1 % sooner
         return studies.Plan.for_aperture(channel.aperture, args.steps, times=10, max_times=100)
 
-    total = sum(plan_of(ch).steps(len(NONLINEAR_REYNOLDS)) for ch in (rough, smooth))
+    total = sum(plan_of(ch).most_steps(len(NONLINEAR_REYNOLDS)) for ch in (rough, smooth))
     bar = Progress(args, total)
     args.timeseries = []
     status = "finished"
@@ -419,7 +426,7 @@ def run_nonlinear(args) -> int:
             reynolds_ladder(args, name, channel, plan_of(channel), bar)
     except KeyboardInterrupt:
         status = "interrupted"
-    bar.close()
+    bar.close(finished=status == "finished")
     series = {name: ch.rows() for name, ch in (("rough", rough), ("smooth", smooth)) if ch.results}
     summary = {"reynolds_definition": "Re = Q_full / nu (Eq. 6)", "mach_limit": MACH_LIMIT,
                "rough_opening": studies.opening(rough), "smooth_width": smooth.aperture, "series": series}

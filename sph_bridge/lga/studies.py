@@ -61,6 +61,10 @@ class Plan:
     def steps(self, drives: int) -> int:
         return self.spinup + (drives - 1) * (self.spinup // 2) + drives * self.average
 
+    def most_steps(self, drives: int) -> int:
+        """:meth:`steps` with every averaging window extended to ``max_average``."""
+        return self.steps(drives) + drives * max(0, self.max_average - self.average)
+
 
 @dataclass
 class Channel:
