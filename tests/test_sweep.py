@@ -369,6 +369,19 @@ def test_yade_script_refused_packing_is_one_line_exit_2(tmp_path):
 
 
 @pytest.mark.yade
+@pytest.mark.parametrize("column, value, allowed", [("logM", "9", "[-6, 6]"), ("logCa", "-12", "[-10, 4]")])
+def test_yade_script_keeps_to_the_sweeps_bounds(tmp_path, column, value, allowed):
+    # the sweep refuses log M 9; the YADE script ran it (a new-user pass)
+    (tmp_path / "bad.table").write_text(f"description {column} out\nbad {value} '{tmp_path / 'run'}'\n")
+    env = {**os.environ, "YADE_BATCH": f"{tmp_path / 'bad.table'}:2"}
+    proc = subprocess.run(["yade", "-n", "-x", str(ROOT / "yade_scripts" / "hele_shaw_linear.py")], cwd=tmp_path,
+                          env=env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert f"hele_shaw_linear.py: table: {column} must lie in {allowed}, got {value}" in proc.stderr
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.yade
 @pytest.mark.parametrize("signum, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_yade_script_interrupted_exits_128_plus_signal_with_one_line_and_a_valid_directory(signum, status, tmp_path):
     # Ctrl-C or a batch system's SIGTERM to `yade -n -x yade_scripts/hele_shaw_linear.py` (the

@@ -4,12 +4,12 @@
     yade-batch yade_scripts/lenormand.table yade_scripts/hele_shaw_linear.py
     python -m hmdem.sweep collect runs/lenormand-batch           # sweep.csv, phase_diagram.png
 
-Parameters (``readParamsFromTable``; defaults in brackets): logM [2] = log10(eta_inv / eta_def),
-logCa [1] = log10 Ca*, seed [0] (aperture field), packing [shipped 65 mm packing], out
-[runs/lenormand-batch/<run id>]. An out that holds this point's finished run (same M, Ca*, seed
-and packing bytes) is its result; one of an interrupted run is run again; any other existing
-directory is refused. The run is the one ``python -m hmdem.sweep lenormand`` makes
-for that point (``python -m hmdem.hele_shaw linear --case sd --viscosity-ratio ...``), in the
+Parameters (``readParamsFromTable``; defaults in brackets): logM [2] = log10(eta_inv / eta_def)
+in [-6, 6], logCa [1] = log10 Ca* in [-10, 4] (the sweep's bounds), seed [0] (aperture field),
+packing [shipped 65 mm packing], out [runs/lenormand-batch/<run id>]. An out that holds this
+point's finished run (same M, Ca*, seed and packing bytes) is its result; one of an interrupted
+run is run again; any other existing directory is refused. The run is the one
+``python -m hmdem.sweep lenormand`` makes for that point (``python -m hmdem.hele_shaw linear --case sd --viscosity-ratio ...``), in the
 same run-directory layout. The yade launcher runs Debian's Python, so the repository root goes
 on sys.path first and the project venv's pure-Python packages last, behind Debian's numpy
 (config.toml records which numpy ran: round-off can differ from the venv's).
@@ -32,9 +32,14 @@ read_yade_table("yade_scripts/hele_shaw_linear.py", utils.readParamsFromTable, l
                 packing="", out="")
 from yade.params import table  # noqa: E402
 
-from hmdem.sweep.grid import SweepPoint  # noqa: E402
+from hmdem.sweep.grid import LOG_CA_STAR_RANGE, LOG_M_RANGE, SweepPoint  # noqa: E402
 from hmdem.sweep.runner import NotThisPoint, RunFailed, run_point  # noqa: E402
 
+for column, (low, high) in (("logM", LOG_M_RANGE), ("logCa", LOG_CA_STAR_RANGE)):  # the sweep's own bounds
+    if not low <= float(getattr(table, column)) <= high:
+        print(f"yade_scripts/hele_shaw_linear.py: table: {column} must lie in [{low:g}, {high:g}], got "
+              f"{getattr(table, column)!r}", file=sys.stderr)
+        sys.exit(2)
 point = SweepPoint(float(table.logM), float(table.logCa), int(table.seed))
 out = Path(table.out or f"runs/lenormand-batch/{point.run_id}")
 try:
