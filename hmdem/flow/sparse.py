@@ -221,15 +221,21 @@ class SpdSolver:
         return lambda r: spla.cg(As, r, rtol=rtol, maxiter=500, M=preconditioner)[0]
 
 
+def island_residual_sums(r, scale, floating):
+    """(member mask, island label of each member, per island the sum of its rows' unscaled
+    residuals): summed over an island the pipe terms cancel, leaving sum b - storage . x."""
+    member = floating >= 0
+    label = floating[member]
+    return member, label, np.bincount(label, np.asarray(r, float)[member] / scale[member])
+
+
 def settle_island_levels(y, r, scale, storage, floating):
     """``y`` (scaled unknowns, scaled residual ``r``) and its residual with each shut-in island
     shifted to the level its own mass balance fixes: summed over an island the pipe terms
     cancel, so its rows' residuals add up to sum b - storage . x, and the uniform shift
     sum(r) / sum(storage) zeroes that sum. The shift moves no pipe flux, so each row's residual
     changes by its storage times the shift exactly, with no new evaluation of the residual."""
-    member = floating >= 0
-    label = floating[member]
-    defect = np.bincount(label, np.asarray(r, float)[member] / scale[member])
+    member, label, defect = island_residual_sums(r, scale, floating)
     total = np.bincount(label, storage[member], len(defect))
     shift = np.divide(defect, total, out=np.zeros_like(defect), where=total > 0.0)
     y, r = y.copy(), r.copy()
@@ -242,10 +248,9 @@ def island_defect(r, scale, floating, b_size) -> float:
     """Largest mass defect of a shut-in island: |sum of its rows' residuals| (the pipe terms
     cancel, leaving sum b - storage . x) over the sum of its rows' term sizes ``b_size``.
     ``r`` is the residual of the scaled system (row i multiplied by ``scale[i]``)."""
-    member = floating >= 0
-    label = floating[member]
-    defect = np.abs(np.bincount(label, np.asarray(r, float)[member] / scale[member]))
+    member, label, defect = island_residual_sums(r, scale, floating)
     terms = np.bincount(label, b_size[member])
+    defect = np.abs(defect)
     return float(np.max(defect / np.maximum(terms, np.finfo(float).tiny), initial=0.0))
 
 
