@@ -9,6 +9,7 @@ import contextlib
 import math
 import os
 import re
+import shlex
 import signal
 import sys
 import time
@@ -113,6 +114,12 @@ def add_contact_arguments(parser: argparse.ArgumentParser, *, stiffness: bool = 
 
 
 _last_interrupt = {"signal": signal.SIGINT}  # the signal that stopped the command, for its exit status
+
+
+def recorded_command(prog: str, argv) -> str:
+    """config.toml's command: ``prog`` and the arguments, shell-quoted so that it replays with
+    a blank in a path (a review found ' '.join)."""
+    return f"{prog} {shlex.join(argv)}"
 
 
 def open_bar(tqdm, **options):
@@ -265,7 +272,9 @@ def exists(path: Path) -> bool:
 def read_packing(path: Path):
     """The ``--packing`` file as a :class:`~hmdem.network.packing.DiscPacking`; a missing or
     unreadable file is an :class:`InputError`."""
-    from .network.contact_graph import contacts_off_triangulation
+    from scipy.spatial import Delaunay
+
+    from .network.contact_graph import ContactsOffTriangulation, check_contacts_on_triangulation, delaunay_edge_keys
     from .network.packing import DiscPacking
 
     if Path(path).is_dir():
@@ -279,11 +288,12 @@ def read_packing(path: Path):
                          "seed); write one with python -m hmdem.dem.packing or hmdem.dem.compaction") from None
     except Exception as exc:  # not an npz at all
         raise InputError(f"--packing: cannot read a packing from {str(path)!r} ({type(exc).__name__})") from None
-    off = contacts_off_triangulation(packing.centres, np.sort(packing.contacts, axis=1))
-    if len(off):
-        raise InputError(f"--packing: {len(off)} of its contacts (e.g. grains {off[0][0]} and {off[0][1]}) are not "
-                         "edges of the centres' Delaunay triangulation: a grain sits in their throat, and the pore "
-                         "network cannot have them as pipes")
+    n = len(packing.centres)
+    try:  # the near contacts a run adds are checked where its network is built (ContactsOffTriangulation)
+        check_contacts_on_triangulation(np.sort(packing.contacts, axis=1),
+                                        delaunay_edge_keys(Delaunay(packing.centres).simplices, n), n)
+    except ContactsOffTriangulation as exc:
+        raise InputError(f"--packing: {exc}") from None
     return packing
 
 

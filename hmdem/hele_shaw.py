@@ -8,6 +8,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 import time
@@ -50,7 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
     lin.add_argument("--seed", type=non_negative_int, default=0, help="aperture field seed (default 0)")
     lin.add_argument("--dt", type=positive_number,
                      help="nominal flow step [s] (default per case, scaled with the rate when --ca-star, "
-                          "--viscosity-ratio, --rate or --mean-aperture change it)")
+                          "--viscosity-ratio, --rate or --mean-aperture change it; darcy's is its own)")
     lin.add_argument("--scheme", choices=("implicit", "explicit"), default="implicit")
     lin.add_argument("--inlet", choices=("manifold", "split"), default="manifold",
                      help="manifold: inflow domains share one pressure (default); split: Q/N_in each")
@@ -219,6 +220,18 @@ class FrontProgress:
         self.bar.close()
 
 
+@contextlib.contextmanager
+def near_contacts_checked():
+    """The network's near contacts (gap up to the case's contact gap) off the Delaunay
+    triangulation, which the packing file's own check cannot see: one line about --packing."""
+    from .network.contact_graph import ContactsOffTriangulation
+
+    try:
+        yield
+    except ContactsOffTriangulation as exc:
+        raise InputError(f"--packing: with its near contacts, {exc}") from None
+
+
 def recorded_argv(args) -> list[str]:
     """The arguments config.toml records: ``args.argv``, set by :func:`main` (also when a YADE
     script calls it) and by the sweep runner, else the process's own."""
@@ -227,7 +240,7 @@ def recorded_argv(args) -> list[str]:
 
 def run_linear(args) -> int:
     """One linear run from parsed arguments; config.toml records :func:`recorded_argv`."""
-    from .report import write_run
+    from .report import packing_record, write_run
     from .scenario import build_scenario
     from .flow.simulation import FlowModel
 
@@ -237,7 +250,10 @@ def run_linear(args) -> int:
         read_packing(args.packing)  # a missing or unreadable file stops here, before any work
     out = new_run_directory(args.out, args.case)
     case = make_case(args)
-    sc = build_scenario(case, seed=args.seed, inlet=args.inlet, scheme=args.scheme, packing_path=args.packing)
+    packing = None if case.geometry == "lattice" else packing_record(
+        args.packing or default_packing_path(), getattr(args, "packing_recorded", None))  # set by the sweep runner
+    with near_contacts_checked():
+        sc = build_scenario(case, seed=args.seed, inlet=args.inlet, scheme=args.scheme, packing_path=args.packing)
     check_aperture_fits_grains(case.mean_aperture, sc.packing_radii, args.mean_aperture is not None)
     check_fill_time(args, float(sc.net.domain_volume.sum()), sc.setup.rate)
     if args.max_steps is not None:
@@ -257,8 +273,7 @@ def run_linear(args) -> int:
     darcy = read_darcy_run(sc, rec, state) if case.name == "darcy" and rec.status == "t_max" else None
     summary = write_run(out, sc, model, state, rec, seed=args.seed, argv=recorded_argv(args),
                         snapshots=None if snapshots is None else snapshots.taken,
-                        packing_file=None if case.geometry == "lattice" else args.packing or default_packing_path(),
-                        packing_name=getattr(args, "packing_recorded", None),  # set by the sweep runner
+                        packing=packing,
                         summary_extra=None if darcy is None else darcy.summary(),
                         extra_files=darcy.write_figure if darcy is not None and darcy.steady else None)
     print(f"{case.name}: {rec.status} at t = {state.t:.4g} s after {rec.steps} steps; regime: {summary['regime']}, "
@@ -343,19 +358,22 @@ def run_radial(args) -> int:
     from .coupling.output import write_radial_run
     from .coupling.radial import RADIAL_CASES, build_radial_scenario, default_huang_packing_path
     from .dem.runs import start_grains
+    from .report import packing_record
 
     packing = None if args.packing is None else read_compacted_packing(args.packing)
+    recorded_packing = packing_record(args.packing or default_huang_packing_path())
     if args.one_way_volume is not None and not args.one_way:
         raise InputError("--one-way-volume: only with --one-way (the P-V iteration always puts dV in)")
     out = new_run_directory(args.out, args.case)
     case = RADIAL_CASES[args.case]
     if args.dt is not None:
         case = replace_case(case, dt=args.dt)
-    sc = build_radial_scenario(case, packing, ca_star=args.ca_star, viscosity_ratio=args.viscosity_ratio,
-                               one_way=args.one_way, sigma=args.sigma, fixed_port=args.fixed_port,
-                               grain_density=args.grain_density, contact_gap=args.contact_gap,
-                               friction=args.friction, stiffness_ratio=args.stiffness_ratio,
-                               boundary_hold=args.boundary)
+    with near_contacts_checked():
+        sc = build_radial_scenario(case, packing, ca_star=args.ca_star, viscosity_ratio=args.viscosity_ratio,
+                                   one_way=args.one_way, sigma=args.sigma, fixed_port=args.fixed_port,
+                                   grain_density=args.grain_density, contact_gap=args.contact_gap,
+                                   friction=args.friction, stiffness_ratio=args.stiffness_ratio,
+                                   boundary_hold=args.boundary)
     for flag, field, convert in COUPLING_FLAGS:
         if getattr(args, flag) is not None:
             setattr(sc.coupling, field, convert(getattr(args, flag)))
@@ -376,7 +394,7 @@ def run_radial(args) -> int:
         bar.close(model, state)
     summary = write_radial_run(out, sc, model, state, rec, argv=recorded_argv(args),
                                snapshots=None if snapshots is None else snapshots.taken,
-                               packing_file=args.packing or default_huang_packing_path())
+                               packing=recorded_packing)
     early = ""
     if summary["early_peak_fell"]:
         early = (f" (early peak {summary['early_peak_injection_pressure_pa']:.4g} Pa "

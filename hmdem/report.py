@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import hashlib
 import platform
-import shlex
 from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
 from . import __version__
+from .cli import recorded_command
 from .flow.diagnostics import (UNDETERMINED, classify_regime, early_peak, fractal_dimension,
                                mass_radius_dimension, regime_at_breakthrough)
 from .flow.fluids import WEAK_COMPRESSION
@@ -98,24 +98,24 @@ def summarize(sc, model, state, rec, d_f: float | None = None) -> dict:
 
 
 def packing_record(path, name: str | None = None) -> dict:
-    """config.toml's [packing]: ``name`` (default: the file's absolute path) and the SHA-256 of
-    the file's bytes."""
+    """config.toml's [packing]: ``name`` (default: the file's absolute path; a sweep worker reads
+    a scratch copy of the client's file) and the SHA-256 of the file's bytes."""
     path = Path(path)
     return {"file": name or str(path.resolve()), "sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
 
 
 def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: dict | None = None,
               extra_files=None, overlay=None, config_extra: dict | None = None, snapshots=None,
-              packing_file=None, packing_name: str | None = None) -> dict:
+              packing: dict | None = None) -> dict:
     """Write every file of the run directory into a temporary folder, then rename it to ``out``.
 
     Couplings add to the contract: ``summary_extra`` (keys added to or replacing the summary's),
     ``extra_files(tmp)`` writes further files, ``overlay`` (k, 2, 2) segments drawn in red on
     the pattern (e.g. opened contacts), ``config_extra`` more config.toml tables.
     ``snapshots`` (a list of :class:`~hmdem.snapshots.Snapshot`, or None): the ParaView time
-    series, closed by the final state (hmdem/snapshots.py). ``packing_file``: the grains' file,
-    which config.toml's [packing] names (as ``packing_name`` if given: a sweep worker reads a
-    scratch copy) with its SHA-256 (the shipped one too).
+    series, closed by the final state (hmdem/snapshots.py). ``packing``: config.toml's [packing]
+    (:func:`packing_record`, taken when the run read its grains, so that a file moved or
+    regenerated during the run neither loses the run nor names other bytes).
     """
     extra = summary_extra or {}
     summary = summarize(sc, model, state, rec, extra.get("fractal_dimension"))
@@ -123,7 +123,7 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
     net = sc.net
     setup = {k: v for k, v in asdict(sc.setup).items() if k != "fluids"}
     config = {
-        "run": {"command": "python -m hmdem.hele_shaw " + shlex.join(argv), "hmdem_version": __version__,
+        "run": {"command": recorded_command("python -m hmdem.hele_shaw", argv), "hmdem_version": __version__,
                 "python": platform.python_version(), "numpy": np.__version__, "case": sc.case.name, "seed": seed},
         "case": {"title": sc.case.title, "geometry": sc.case.geometry, "ca_star": sc.ca_star,
                  "mean_aperture_m": sc.case.mean_aperture, "aperture_spread": sc.case.aperture_spread,
@@ -132,8 +132,8 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
         "solver": setup,
         **(config_extra or {}),
     }
-    if packing_file is not None:
-        config["packing"] = packing_record(packing_file, packing_name)
+    if packing is not None:
+        config["packing"] = packing
     with atomic_run_directory(out) as tmp:
         write_toml(tmp / "config.toml", config)
         write_json(tmp / "summary.json", summary)

@@ -367,6 +367,7 @@ def test_yade_batch_runs_the_radial_script(tmp_path):
     ("case maxSteps", "B3 2", "name 'B3' is not defined"),  # a string without quotes
     ("case packing", "'B3' /tmp/p.npz", "invalid syntax"),  # a path without quotes
     ("case flags", "'B3' '--damping 0.3'", "unterminated string literal"),  # a blank splits a column
+    ("case flags", "'B3' 5", "flags must be a quoted string of comma-separated CLI flags, got 5"),
 ])
 def test_yade_batch_table_errors_are_one_line(tmp_path, header, row, message):
     # YADE's readParamsFromTable evaluates each value as Python and raises NameError or

@@ -97,7 +97,8 @@ def test_a3_fractures_stay_in_the_infiltration_zone(huang):
     assert s["n_opened_in_invaded_zone"] > s["n_opened_contacts"] / 2
 
 
-@pytest.mark.xfail(strict=True, reason="known model discrepancy, issue 3 open: since decisions #89 (Eq. 18 fills its "
+@pytest.mark.xfail(strict=False, reason="known model discrepancy, issue 3 open (not strict: the fall is 0.01 points "
+                   "under its threshold, and round-off may lift it over): since decisions #89 (Eq. 18 fills its "
                    "target) A3's curve falls only 1.99 % below its running peak on the 200-interval grid (754 kPa at "
                    "62 us, the fall by 86 us), under the 2 % that reads an early peak (#51), so the overall peak, "
                    "1.14 MPa at breakthrough, gives 11.4x A1's 100 kPa. The fall was always thin: 2.1-2.75 % on the "

@@ -311,6 +311,23 @@ def test_run_point_takes_only_its_own_run_directory(packing, tmp_path):
             run_point(other, where, str(pk))
     assert (precious / "notes.txt").read_text() == "keep"
     assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in (tmp_path / "copy").iterdir())
+    # the point's command with other options, cut short here, is not its result (review)
+    from hmdem.hele_shaw import main as run_main
+    from hmdem.sweep.runner import cli_arguments
+
+    cut = tmp_path / "cut"
+    assert run_main(cli_arguments(point, cut, str(packing)) + ["--max-steps", "3"]) == 0
+    with pytest.raises(NotThisPoint):
+        run_point(point, cut, str(packing))
+    # a run written before config.toml had [packing] is matched by the file its command names
+    config = (tmp_path / "copy" / "config.toml").read_text()
+    (tmp_path / "copy" / "config.toml").write_text(config[:config.index("[packing]")])
+    assert run_point(point, tmp_path / "copy", str(packing)) == first
+    # a table's packing that is not there is named as such, before anything is hashed
+    from hmdem.cli import InputError
+
+    with pytest.raises(InputError, match="--packing: no such file"):
+        run_point(point, out, str(tmp_path / "missing.npz"))
 
 
 def test_a_sweep_run_names_the_packing_the_client_gave(packing):
@@ -369,7 +386,8 @@ def test_yade_script_refused_packing_is_one_line_exit_2(tmp_path):
 
 
 @pytest.mark.yade
-@pytest.mark.parametrize("column, value, allowed", [("logM", "9", "[-6, 6]"), ("logCa", "-12", "[-10, 4]")])
+@pytest.mark.parametrize("column, value, allowed", [("logM", "9", "[-6, 6]"), ("logCa", "-12", "[-10, 4]"),
+                                                    ("logM", "'two'", "[-6, 6]")])
 def test_yade_script_keeps_to_the_sweeps_bounds(tmp_path, column, value, allowed):
     # the sweep refuses log M 9; the YADE script ran it (a new-user pass)
     (tmp_path / "bad.table").write_text(f"description {column} out\nbad {value} '{tmp_path / 'run'}'\n")
@@ -377,7 +395,7 @@ def test_yade_script_keeps_to_the_sweeps_bounds(tmp_path, column, value, allowed
     proc = subprocess.run(["yade", "-n", "-x", str(ROOT / "yade_scripts" / "hele_shaw_linear.py")], cwd=tmp_path,
                           env=env, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
-    assert f"hele_shaw_linear.py: table: {column} must lie in {allowed}, got {value}" in proc.stderr
+    assert f"hele_shaw_linear.py: table: {column} must be a number in {allowed}, got {value}" in proc.stderr
     assert not (tmp_path / "run").exists()
 
 

@@ -36,9 +36,10 @@ from hmdem.sweep.grid import LOG_CA_STAR_RANGE, LOG_M_RANGE, SweepPoint  # noqa:
 from hmdem.sweep.runner import NotThisPoint, RunFailed, run_point  # noqa: E402
 
 for column, (low, high) in (("logM", LOG_M_RANGE), ("logCa", LOG_CA_STAR_RANGE)):  # the sweep's own bounds
-    if not low <= float(getattr(table, column)) <= high:
-        print(f"yade_scripts/hele_shaw_linear.py: table: {column} must lie in [{low:g}, {high:g}], got "
-              f"{getattr(table, column)!r}", file=sys.stderr)
+    value = getattr(table, column)
+    if isinstance(value, str) or not low <= float(value) <= high:
+        print(f"yade_scripts/hele_shaw_linear.py: table: {column} must be a number in [{low:g}, {high:g}], got "
+              f"{value!r}", file=sys.stderr)
         sys.exit(2)
 point = SweepPoint(float(table.logM), float(table.logCa), int(table.seed))
 out = Path(table.out or f"runs/lenormand-batch/{point.run_id}")

@@ -58,7 +58,12 @@ if table.friction != -1:  # 0 is a valid coefficient, so "unset" is -1; other va
 argv += ["--boundary", table.boundary]  # the CLI checks the value
 if table.packing:
     argv += ["--packing", table.packing]
-argv += [flag for flag in table.flags.split(",") if flag]  # the CLI checks each
+if table.flags:  # 0 or '' for none, as the other columns' "unset"
+    if not isinstance(table.flags, str):
+        print(f"yade_scripts/radial_injection.py: table: flags must be a quoted string of comma-separated CLI "
+              f"flags, got {table.flags!r}", file=sys.stderr)
+        sys.exit(2)
+    argv += [flag for flag in table.flags.split(",") if flag]  # the CLI checks each (a repeated flag: the last)
 description = O.tags["description"] if "description" in O.tags.keys() else ""
 out = table.out or (f"runs/batch/{description}" if description else "")
 if out:

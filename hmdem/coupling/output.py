@@ -35,7 +35,7 @@ def fracture_resistance_series(run: Path) -> list[tuple[float, int, float, float
             for t, saturation, aperture, opened in read_series(run, len(net["domain_volume"]))]
 
 
-def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None, packing_file=None) -> dict:
+def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None, packing=None) -> dict:
     grains, net = model.grains, sc.net
     positions = model.positions
     initial_positions = sc.packing.centres.copy()
@@ -141,4 +141,4 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None, pac
     overlay = positions[g[opened]]
     return write_run(out, sc, model, state, rec, seed=0, argv=argv, summary_extra=extra, extra_files=files,
                      overlay=overlay, config_extra=config, snapshots=snapshots,
-                     packing_file=packing_file)
+                     packing=packing)

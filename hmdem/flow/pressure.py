@@ -203,8 +203,8 @@ class PressureSystem:
             key = np.packbits(new_blocked).tobytes()
             if key in seen or passes == MAX_ACTIVE_SET_PASSES - 1:
                 # cycling, or one pass left: the last pass solves with the union of the last two
-                # sets held shut (conservative), so that the pipes returned as shut are the ones
-                # the solution was solved with (decisions #88)
+                # sets held shut (conservative: some shut pipes may have margins > 0, and the next
+                # step's Eq. 19 check sees them again), and the solve says it did not settle (#88)
                 hold_blocked, settled = True, False
                 new_blocked = blocked | new_blocked
             seen.add(key)

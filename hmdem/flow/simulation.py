@@ -111,23 +111,26 @@ def deferred_interrupts():
     """Hold Ctrl-C (SIGINT) and SIGTERM until the block ends, then deliver them to the handlers
     that were there, so that an accepted step updates the state, the records and the grains
     together: an interrupt that landed half-way left a run directory whose state was a step
-    ahead of its last time-series row (found in review). Outside the main thread, where handlers
-    cannot be set, the block runs as it is."""
+    ahead of its last time-series row (found in review). It covers the acceptance only: in the
+    coupled variants that move the grains without a snapshot (--one-way, --pv-continue), an
+    interrupt between the DEM's move and the acceptance still leaves the grains a step ahead.
+    Outside the main thread, where handlers cannot be set, the block runs as it is."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    held = []
-    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
-    previous = {sig: handler for sig, handler in previous.items() if handler is not None}  # None: set from C
-    for sig in previous:
-        signal.signal(sig, lambda signum, frame: held.append(signum))
-    try:
+    held, previous = [], {}
+    try:  # a handler is recorded before it is replaced, so that finally puts back every one replaced
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            handler = signal.getsignal(sig)
+            if handler is not None:  # None: set from C, left alone
+                previous[sig] = handler
+                signal.signal(sig, lambda signum, frame: held.append(signum))
         yield
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-    for signum in held:
-        signal.raise_signal(signum)
+        for signum in held:  # also when the block raised: the interrupt still ends the run
+            signal.raise_signal(signum)
 
 
 class FlowModel:

@@ -48,13 +48,24 @@ def delaunay_edge_keys(simplices: np.ndarray, n: int) -> np.ndarray:
     return np.minimum(ea, eb).astype(np.int64) * n + np.maximum(ea, eb)
 
 
-def contacts_off_triangulation(centres: np.ndarray, contacts: np.ndarray) -> np.ndarray:
-    """Contacts (i < j) that are not edges of the centres' Delaunay triangulation: a grain sits
-    in their throat, and the network, whose pipes are Delaunay edges, would lose them and merge
-    the two pores they separate. None in the shipped packings."""
-    n = len(centres)
-    keys = contacts[:, 0].astype(np.int64) * n + contacts[:, 1]
-    return contacts[~np.isin(keys, delaunay_edge_keys(Delaunay(centres).simplices, n))]
+class ContactsOffTriangulation(ValueError):
+    """Contacts that are not edges of the centres' Delaunay triangulation."""
+
+
+def check_contacts_on_triangulation(contacts: np.ndarray, edge_keys: np.ndarray, n: int) -> None:
+    """A :class:`ContactsOffTriangulation` if some contacts (i < j) are not Delaunay edges
+    (``edge_keys`` from :func:`delaunay_edge_keys`): a grain sits in their throat, and the
+    network, whose pipes are Delaunay edges, would lose them and merge the two pores they
+    separate while the Euler check still passed (found in review). None in the shipped packings,
+    with their near contacts up to a gap of 0.38 too."""
+    missing = ~np.isin(contacts[:, 0].astype(np.int64) * n + contacts[:, 1], edge_keys)
+    if missing.any():
+        i, j = contacts[np.argmax(missing)]
+        count = int(missing.sum())
+        raise ContactsOffTriangulation(
+            f"{count} of its contacts (e.g. grains {i} and {j}) {'are not edges' if count > 1 else 'is not an edge'} "
+            "of the centres' Delaunay triangulation: a grain sits in the throat, and the pore network cannot have "
+            f"{'them' if count > 1 else 'it'} as a pipe")
 
 
 def _triangle_areas(points: np.ndarray, simplices: np.ndarray) -> np.ndarray:
@@ -71,8 +82,8 @@ def build_contact_network(centres: np.ndarray, radii: np.ndarray, contacts: np.n
     Pipes have length r1 + r2 (seed 004 Eq. 1); apertures are left at zero for the caller
     (fixed grains: :func:`hmdem.network.apertures.uniform_apertures`). Contacts of clusters not
     connected to the main contact graph are dropped so that the Euler check holds. A contact
-    that is not a Delaunay edge (:func:`contacts_off_triangulation`) is a ValueError: it could
-    not be a pipe, and the Euler check would not notice its two pores merged.
+    that is not a Delaunay edge is a :class:`ContactsOffTriangulation`
+    (:func:`check_contacts_on_triangulation`).
     """
     centres = np.asarray(centres, float)
     radii = np.asarray(radii, float)
@@ -85,12 +96,8 @@ def build_contact_network(centres: np.ndarray, radii: np.ndarray, contacts: np.n
     n_tri = len(simp)
     keys = delaunay_edge_keys(simp, n)  # triangle edge k is opposite vertex k
     lo, hi = keys // n, keys % n
+    check_contacts_on_triangulation(contacts, keys, n)
     is_contact = np.isin(keys, contact_keys)
-    missing = ~np.isin(contact_keys, keys)
-    if missing.any():
-        i, j = contacts[np.argmax(missing)]
-        raise ValueError(f"{int(missing.sum())} contacts are not edges of the centres' Delaunay triangulation "
-                         f"(e.g. grains {i} and {j}: a grain sits in their throat), so they cannot bound pores")
 
     # glue triangles across non-contact edges; node n_tri is the outer face
     t_idx = np.repeat(np.arange(n_tri)[:, None], 3, axis=1)

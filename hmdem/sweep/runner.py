@@ -3,14 +3,14 @@
 The base case is Lenormand's Case 2 (``sd``: glucose solution into oil, both with K = 2000 MPa,
 gamma = 14.5 dyn/cm, theta = 180 deg, drainage): M changes the invading viscosity (the
 defending oil keeps 5.6 cP) and Ca* the rate (Eq. 24), so the two axes of the diagram are the
-only things that change (decisions.md #28). The nominal step follows the rate (``make_case``).
+only things that change (decisions.md #28). The nominal step follows the rate (``hmdem.scenario.build_scenario``).
 """
 
 from __future__ import annotations
 
 import io
 import json
-import math
+import shlex
 import shutil
 import tomllib
 from contextlib import redirect_stdout
@@ -53,34 +53,45 @@ class NotThisPoint(ValueError):
     """``out`` exists and is not a run directory of the point asked for."""
 
 
-def point_of_run(run_dir: Path) -> tuple[float, float, int, str] | None:
-    """(M, Ca*, seed, packing SHA-256) a run directory was run with, from its config.toml; None
-    if it is not a linear run directory of the sweep's base case."""
-    path = Path(run_dir) / "config.toml"
-    if not path.is_file():
+def recorded_run(run_dir: Path) -> tuple[list[str], str | None] | None:
+    """(the recorded command's arguments without --out, --quiet and --packing; the packing's
+    SHA-256 or None) of a run directory, from its config.toml; None if it has none or it is
+    unreadable. A run written before config.toml had [packing] is hashed from the file its
+    command names (the shipped one without --packing), if that file is still there."""
+    from ..cases import default_packing_path
+    from ..report import packing_record
+
+    try:
+        config = tomllib.loads((Path(run_dir) / "config.toml").read_text())
+        words = shlex.split(config["run"]["command"])[3:]  # after python -m hmdem.hele_shaw
+    except (OSError, ValueError, KeyError):
         return None
-    config = tomllib.loads(path.read_text())
-    if config.get("run", {}).get("case") != BASE_CASE or "packing" not in config:
-        return None
-    fluids = config["fluids"]
-    return (fluids["viscosity_inv"] / fluids["viscosity_def"], config["case"]["ca_star"], config["run"]["seed"],
-            config["packing"]["sha256"])
+    kept, packing = [], None
+    pairs = iter(words)
+    for word in pairs:
+        if word in ("--out", "--packing"):
+            value = next(pairs, None)
+            packing = value if word == "--packing" else packing
+        elif word != "--quiet":
+            kept.append(word)
+    if "packing" in config:
+        return kept, config["packing"].get("sha256")
+    path = Path(packing) if packing else Path(default_packing_path())
+    return kept, packing_record(path)["sha256"] if path.is_file() else None
 
 
 def check_out_is_this_point(out: Path, point: SweepPoint, packing: str | None) -> None:
     """A :class:`NotThisPoint` unless ``out`` holds a run of ``point`` on ``packing``'s bytes (the
-    shipped packing for None): a run there of another point, or any other directory, is not
+    shipped packing for None), made with the point's own command: a run there of another point,
+    or of this one with other options (--max-steps, --dt, ...), or any other directory, is not
     taken as this point's result, nor removed to make room (found in a new-user pass: the YADE
     script reported a cf1 run as its point's, and wiped a directory of other files)."""
     from ..cases import default_packing_path
     from ..report import packing_record
 
-    recorded = point_of_run(out)
-    expected = (10.0 ** point.log_m, 10.0 ** point.log_ca_star, point.seed,
-                packing_record(packing or default_packing_path())["sha256"])
-    if recorded is None or not (math.isclose(recorded[0], expected[0], rel_tol=1e-9)
-                                and math.isclose(recorded[1], expected[1], rel_tol=1e-9)
-                                and recorded[2:] == expected[2:]):
+    expected = [word for word in cli_arguments(point, out) if word not in ("--out", str(out), "--quiet")]
+    sha256 = packing_record(packing or default_packing_path())["sha256"]
+    if recorded_run(out) != (expected, sha256):
         raise NotThisPoint(f"--out: {str(out)!r} exists and is not a run of point {point.run_id} on this packing; "
                            "choose a new run directory")
 
@@ -94,9 +105,12 @@ def run_point(point: SweepPoint, out: Path, packing: str | None = None, recorded
     worker that reads a scratch copy. An existing ``out`` must be a run of this point
     (:func:`check_out_is_this_point`): a finished one is its result, one left by an interrupted
     or diverged run is replaced. Raises on any failure; the sweep records the error text."""
+    from ..cli import InputError
     from ..hele_shaw import build_parser, run_linear
 
     out = Path(out)
+    if packing is not None and not Path(packing).is_file():  # before it is hashed or read
+        raise InputError(f"--packing: no such file {str(packing)!r}")
     if out.exists():
         check_out_is_this_point(out, point, packing)
         finished = read_summary(out)

@@ -21,7 +21,6 @@ the other channels whole, with status "failed" and exit status 1.
 from __future__ import annotations
 
 import argparse
-import shlex
 import sys
 import time
 from pathlib import Path
@@ -29,7 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from hmdem import __version__
-from hmdem.cli import InputError, OneLineParser, dispatch, int_at_least, new_run_directory, number_in
+from hmdem.cli import (InputError, OneLineParser, dispatch, int_at_least, new_run_directory, number_in,
+                       recorded_command)
 from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_toml
 
 from ..interrupts import exit_status
@@ -158,7 +158,7 @@ class Progress:
 def run_directory(args, config: dict, summary: dict, timeseries: list, write_figures) -> Path:
     out = args.out_dir
     with atomic_run_directory(out) as tmp:
-        write_toml(tmp / "config.toml", {"run": {"command": f"{PROG} " + shlex.join(args.argv), "case": args.command},
+        write_toml(tmp / "config.toml", {"run": {"command": recorded_command(PROG, args.argv), "case": args.command},
                                          **config})
         write_json(tmp / "summary.json", summary)
         write_rows(tmp / "timeseries.csv", ("step", "drive", "flow_rate", "force_applied_per_node",
