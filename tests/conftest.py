@@ -10,6 +10,16 @@ from hmdem.flow.simulation import FlowModel
 from hmdem.scenario import build_scenario
 
 
+@pytest.fixture
+def terminal_sigint():
+    """SIGINT handled in this process as from a terminal (KeyboardInterrupt) for one test: under
+    ``make test &`` it is inherited ignored (see :func:`popen_interruptible`), and a held Ctrl-C
+    is then rightly delivered to that ignoring handler. The previous disposition is restored."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
+
+
 def popen_interruptible(cmd, **kwargs):
     """``subprocess.Popen(cmd)`` whose child handles SIGINT as from a terminal (KeyboardInterrupt).
 

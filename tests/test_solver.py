@@ -420,7 +420,7 @@ def test_a_step_that_leaves_a_domain_no_fluid_stops_the_run():
     assert rec.peak_compression == pytest.approx(-state.pressure[1] / AIR_OIL.bulk_modulus_def, rel=1e-6)
 
 
-def test_ctrl_c_inside_a_step_acceptance_leaves_state_and_records_together():
+def test_ctrl_c_inside_a_step_acceptance_leaves_state_and_records_together(terminal_sigint):
     # an interrupt landing while a step is accepted (here in its last part, before the row) is
     # held until the step is whole: the state written is the last row's (found in review: the
     # state was a step ahead of the time series, its energy too)
@@ -471,7 +471,7 @@ def test_an_active_set_out_of_passes_is_held_as_a_cycle_is(monkeypatch):
     assert rec.max_mass_balance_error < 1e-10
 
 
-def test_deferred_interrupts_deliver_after_a_raising_block_and_restore_the_handlers():
+def test_deferred_interrupts_deliver_after_a_raising_block_and_restore_the_handlers(terminal_sigint):
     # review of the first version: a block that raised dropped the held Ctrl-C, and a signal
     # between two handler swaps could leave one replaced for good
     import os
