@@ -15,8 +15,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 from .network.packing import CONTACT_STIFFNESS, GRAIN_FRICTION
 from .rundir import RunDirectoryTaken
 
@@ -272,9 +270,7 @@ def exists(path: Path) -> bool:
 def read_packing(path: Path):
     """The ``--packing`` file as a :class:`~hmdem.network.packing.DiscPacking`; a missing or
     unreadable file is an :class:`InputError`."""
-    from scipy.spatial import Delaunay
-
-    from .network.contact_graph import ContactsOffTriangulation, check_contacts_on_triangulation, delaunay_edge_keys
+    from .network.contact_graph import ContactsOffTriangulation, check_packing_contacts
     from .network.packing import DiscPacking
 
     if Path(path).is_dir():
@@ -288,10 +284,8 @@ def read_packing(path: Path):
                          "seed); write one with python -m hmdem.dem.packing or hmdem.dem.compaction") from None
     except Exception as exc:  # not an npz at all
         raise InputError(f"--packing: cannot read a packing from {str(path)!r} ({type(exc).__name__})") from None
-    n = len(packing.centres)
     try:  # the near contacts a run adds are checked where its network is built (ContactsOffTriangulation)
-        check_contacts_on_triangulation(np.sort(packing.contacts, axis=1),
-                                        delaunay_edge_keys(Delaunay(packing.centres).simplices, n), n)
+        check_packing_contacts(packing.centres, packing.contacts)
     except ContactsOffTriangulation as exc:
         raise InputError(f"--packing: {exc}") from None
     return packing

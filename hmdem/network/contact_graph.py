@@ -68,6 +68,12 @@ def check_contacts_on_triangulation(contacts: np.ndarray, edge_keys: np.ndarray,
             f"{'them' if count > 1 else 'it'} as a pipe")
 
 
+def check_packing_contacts(centres: np.ndarray, contacts: np.ndarray) -> None:
+    """:func:`check_contacts_on_triangulation` for a packing's own contact pairs (any order)."""
+    n = len(centres)
+    check_contacts_on_triangulation(np.sort(contacts, axis=1), delaunay_edge_keys(Delaunay(centres).simplices, n), n)
+
+
 def _triangle_areas(points: np.ndarray, simplices: np.ndarray) -> np.ndarray:
     a, b, c = points[simplices[:, 0]], points[simplices[:, 1]], points[simplices[:, 2]]
     return 0.5 * np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1]))

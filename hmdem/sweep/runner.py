@@ -53,6 +53,21 @@ class NotThisPoint(ValueError):
     """``out`` exists and is not a run directory of the point asked for."""
 
 
+def point_arguments(argv: list[str]) -> tuple[list[str], str | None]:
+    """A run's arguments without --out, --quiet and --packing, which do not make it another
+    point's, and the --packing value (None without)."""
+    kept, packing = [], None
+    words = iter(argv)
+    for word in words:
+        if word == "--packing":
+            packing = next(words, None)
+        elif word == "--out":
+            next(words, None)
+        elif word != "--quiet":
+            kept.append(word)
+    return kept, packing
+
+
 def recorded_run(run_dir: Path) -> tuple[list[str], str | None] | None:
     """(the recorded command's arguments without --out, --quiet and --packing; the packing's
     SHA-256 or None) of a run directory, from its config.toml; None if it has none or it is
@@ -63,17 +78,9 @@ def recorded_run(run_dir: Path) -> tuple[list[str], str | None] | None:
 
     try:
         config = tomllib.loads((Path(run_dir) / "config.toml").read_text())
-        words = shlex.split(config["run"]["command"])[3:]  # after python -m hmdem.hele_shaw
+        kept, packing = point_arguments(shlex.split(config["run"]["command"])[3:])  # after python -m hmdem.hele_shaw
     except (OSError, ValueError, KeyError):
         return None
-    kept, packing = [], None
-    pairs = iter(words)
-    for word in pairs:
-        if word in ("--out", "--packing"):
-            value = next(pairs, None)
-            packing = value if word == "--packing" else packing
-        elif word != "--quiet":
-            kept.append(word)
     if "packing" in config:
         return kept, config["packing"].get("sha256")
     path = Path(packing) if packing else Path(default_packing_path())
@@ -89,7 +96,7 @@ def check_out_is_this_point(out: Path, point: SweepPoint, packing: str | None) -
     from ..cases import default_packing_path
     from ..report import packing_record
 
-    expected = [word for word in cli_arguments(point, out) if word not in ("--out", str(out), "--quiet")]
+    expected = point_arguments(cli_arguments(point, out))[0]
     sha256 = packing_record(packing or default_packing_path())["sha256"]
     if recorded_run(out) != (expected, sha256):
         raise NotThisPoint(f"--out: {str(out)!r} exists and is not a run of point {point.run_id} on this packing; "
