@@ -120,7 +120,7 @@ class _BiaxialProgress:
             self.compact.close()
             self.loading = open_bar(self.tqdm, total=round(100 * self.max_strain, 3), unit="%", desc="loading",
                                     file=sys.stderr,
-                                    bar_format="{desc}: {n:.2f}/{total:.2f} %|{bar}| [{elapsed}<{remaining}] {postfix}")
+                                    bar_format="{desc}: {n:.2f}/{total:.2f} %|{bar}| [{elapsed}<{remaining}{postfix}]")
         now = time.perf_counter()
         if now - self.last >= self.every_s or ea >= self.max_strain:
             self.last = now

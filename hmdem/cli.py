@@ -8,6 +8,7 @@ import argparse
 import contextlib
 import math
 import os
+import platform
 import re
 import shlex
 import signal
@@ -112,6 +113,23 @@ def add_contact_arguments(parser: argparse.ArgumentParser, *, stiffness: bool = 
 
 
 _last_interrupt = {"signal": signal.SIGINT}  # the signal that stopped the command, for its exit status
+
+
+def run_record(prog: str, argv, **fields) -> dict:
+    """config.toml's [run] table: the command that replays the run and the versions that ran
+    it, then ``fields`` (case, seed, ...)."""
+    import numpy as np
+
+    from . import __version__
+
+    return {"command": recorded_command(prog, argv), "hmdem_version": __version__,
+            "python": platform.python_version(), "numpy": np.__version__, **fields}
+
+
+def available_cores() -> int:
+    """The cores this process may run on: the default (and the most) worker processes of a
+    sweep or a lattice-gas study, one single-threaded worker per core."""
+    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
 
 
 def recorded_command(prog: str, argv) -> str:

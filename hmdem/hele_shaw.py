@@ -196,7 +196,7 @@ class FrontProgress:
 
         self.setup, self.every_s, self.last = setup, every_s, 0.0
         self.bar = tqdm(total=100, unit="%", desc=f"{name} {'front' if setup.two_phase else 'time'}", file=sys.stderr,
-                        bar_format="{desc}: {percentage:3.0f}%|{bar}| {postfix}")
+                        bar_format="{desc}: {percentage:3.0f}%|{bar}| [{elapsed}{postfix}]")
 
     def __call__(self, model, state):
         now = time.perf_counter()
@@ -240,7 +240,7 @@ def recorded_argv(args) -> list[str]:
 
 def run_linear(args) -> int:
     """One linear run from parsed arguments; config.toml records :func:`recorded_argv`."""
-    from .report import packing_record, write_run
+    from .report import dimension_note, packing_record, write_run
     from .scenario import build_scenario
     from .flow.simulation import FlowModel
 
@@ -277,7 +277,7 @@ def run_linear(args) -> int:
                         summary_extra=None if darcy is None else darcy.summary(),
                         extra_files=darcy.write_figure if darcy is not None and darcy.steady else None)
     print(f"{case.name}: {rec.status} at t = {state.t:.4g} s after {rec.steps} steps; regime: {summary['regime']}, "
-          f"D_f = {summary['fractal_dimension']:.3f}, peak injection pressure {summary['peak_injection_pressure_pa']:.4g} Pa")
+          f"{dimension_note(summary['fractal_dimension'])}, peak injection pressure {summary['peak_injection_pressure_pa']:.4g} Pa")
     if darcy is not None and not darcy.steady:
         print(f"{case.name}: not steady at its end (t_D < {STEADY_T_D:g}), so k and the comparison with App. D.1 "
               "are not read; give a longer --t-max")
@@ -286,7 +286,7 @@ def run_linear(args) -> int:
               f"the largest errors are {darcy.inflow_pressure_error:.1%} (p_in), {darcy.outflow_rate_error:.1%} (q_out), "
               f"{darcy.profile_error:.1%} (final profile): {'within' if darcy.within_u16 else 'outside'} U16's 5 %")
     print(f"run directory: {out}")
-    return finish(rec, summary)
+    return finish(rec, summary, out)
 
 
 def read_darcy_run(sc, rec, state):
@@ -322,11 +322,12 @@ def busy_cores_warning(threads: int | None) -> str | None:
             f"will wait on each other, and --threads 1 may be many times faster")
 
 
-def finish(rec, summary: dict) -> int:
-    """Warnings, then the exit status: 0 for a finished run, 130 (Ctrl-C) or 143 (SIGTERM) if
-    interrupted, 1 if it could not go on (reason on stderr)."""
+def finish(rec, summary: dict, out: Path) -> int:
+    """Warnings, naming the run directory (a sweep runs many side by side), then the exit
+    status: 0 for a finished run, 130 (Ctrl-C) or 143 (SIGTERM) if interrupted, 1 if it could
+    not go on (reason on stderr)."""
     if not summary["weakly_compressible"]:
-        print(f"{PROG}: warning: a domain's pressure reached {summary['peak_compression']:.2g} of its fluid's bulk "
+        print(f"{PROG}: warning: {out}: a domain's pressure reached {summary['peak_compression']:.2g} of its fluid's bulk "
               f"modulus; a constant K is accurate only up to p/K = {WEAK_COMPRESSION}", file=sys.stderr)
     if rec.status == "diverged":
         print(f"{PROG}: {rec.message}", file=sys.stderr)
@@ -358,7 +359,7 @@ def run_radial(args) -> int:
     from .coupling.output import write_radial_run
     from .coupling.radial import RADIAL_CASES, build_radial_scenario, default_huang_packing_path
     from .dem.runs import start_grains
-    from .report import packing_record
+    from .report import dimension_note, packing_record
 
     packing = None if args.packing is None else read_compacted_packing(args.packing)
     recorded_packing = packing_record(args.packing or default_huang_packing_path())
@@ -400,10 +401,10 @@ def run_radial(args) -> int:
         early = (f" (early peak {summary['early_peak_injection_pressure_pa']:.4g} Pa "
                  f"at {summary['early_peak_time_s']:.3g} s)")
     print(f"{case.name}: {rec.status} at t = {state.t:.4g} s after {rec.steps} steps; regime: {summary['regime']}, "
-          f"{summary['n_opened_contacts']} opened contacts, D_f = {summary['fractal_dimension']:.3f}, "
+          f"{summary['n_opened_contacts']} opened contacts, {dimension_note(summary['fractal_dimension'])}, "
           f"peak injection pressure {summary['peak_injection_pressure_pa']:.4g} Pa{early}")
     print(f"run directory: {out}")
-    return finish(rec, summary)
+    return finish(rec, summary, out)
 
 
 def main(argv=None) -> int:

@@ -3,15 +3,13 @@
 from __future__ import annotations
 
 import hashlib
-import platform
 from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
-from . import __version__
-from .cli import recorded_command
-from .flow.diagnostics import (UNDETERMINED, classify_regime, early_peak, fractal_dimension,
+from .cli import run_record
+from .flow.diagnostics import (classify_regime, early_peak, fractal_dimension,
                                mass_radius_dimension, regime_at_breakthrough)
 from .flow.fluids import WEAK_COMPRESSION
 from .plots import plot_pattern, plot_pressure
@@ -38,6 +36,18 @@ def radial_pattern_dimension(sc, state) -> float:
     net = sc.net
     centre = net.domain_centroid[net.inlet_domains].mean(axis=0)
     return mass_radius_dimension(net, state.saturation >= 0.5, centre, grain_diameter(net))[0]
+
+
+def stop_note(status: str, two_phase: bool = True) -> str:
+    """Title suffix marking a picture of a run that did not reach its end: breakthrough for a
+    displacement, t_max for single-phase flow. An interrupted, diverged or --max-steps run (or a
+    displacement stopped at t_max) shows a partial pattern."""
+    return "" if status == ("breakthrough" if two_phase else "t_max") else f" (stopped: {status})"
+
+
+def dimension_note(d_f: float) -> str:
+    """D_f as titles and the closing line give it; none is read without an invaded pattern."""
+    return f"D_f = {d_f:.3f}" if np.isfinite(d_f) else "no D_f (no invaded pattern)"
 
 
 def summarize(sc, model, state, rec, d_f: float | None = None) -> dict:
@@ -123,8 +133,7 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
     net = sc.net
     setup = {k: v for k, v in asdict(sc.setup).items() if k != "fluids"}
     config = {
-        "run": {"command": recorded_command("python -m hmdem.hele_shaw", argv), "hmdem_version": __version__,
-                "python": platform.python_version(), "numpy": np.__version__, "case": sc.case.name, "seed": seed},
+        "run": run_record("python -m hmdem.hele_shaw", argv, case=sc.case.name, seed=seed),
         "case": {"title": sc.case.title, "geometry": sc.case.geometry, "ca_star": sc.ca_star,
                  "mean_aperture_m": sc.case.mean_aperture, "aperture_spread": sc.case.aperture_spread,
                  "contact_gap": sc.case.contact_gap, "sigma_m": sc.sigma, "length_m": sc.length},
@@ -143,14 +152,13 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
         np.savez_compressed(tmp / "network.npz", **arrays)
         np.savez_compressed(tmp / "state.npz", pressure=state.pressure, saturation=state.saturation,
                             invasion_time=state.invasion_time, t=state.t)
-        regime = summary["regime"] + (f" (stopped: {rec.status})" if rec.status != "breakthrough"
-                                      and summary["regime"] == UNDETERMINED else "")
+        stopped = stop_note(rec.status, sc.setup.two_phase)
         title = f"{sc.case.title}\nCa* = {sc.ca_star:.3g}, M = {sc.setup.fluids.viscosity_ratio:.3g}, t = {state.t:.4g} s, " \
-                f"{regime}, D_f = {summary['fractal_dimension']:.3f}"
+                f"{summary['regime']}, {dimension_note(summary['fractal_dimension'])}{stopped}"
         plot_pattern(tmp / "pattern.png", net, state.saturation, title, sc.packing_radii, overlay)
         marked = {"time": summary["early_peak_time_s"], "pressure": summary["early_peak_injection_pressure_pa"]}
         plot_pressure(tmp / "pressure.png", net, state.pressure, *rec.injection_pressure(),
-                      f"{sc.case.name}: mean injection pressure", marked if summary["early_peak_fell"] else None)
+                      f"{sc.case.name}: mean injection pressure{stopped}", marked if summary["early_peak_fell"] else None)
         write_vtu(tmp / "domains.vtu", net, state)
         if snapshots is not None:
             # the final state closes the series as the files above have it (a run stopped inside

@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import glob
 import importlib
+import io
 import os
 import sys
 
@@ -69,9 +70,9 @@ def import_yade(threads: int | None = None):
             sys.path.insert(0, path)
         sys.modules.pop("yade", None)  # a failed attempt may have left Debian's broken namespace
         try:
-            # YADE prints "Using python version: ..." on import: to stderr, so that stdout keeps
-            # a command's own output (--quiet runs print just their result line)
-            with contextlib.redirect_stdout(sys.stderr):
+            # YADE prints "Using python version: ..." on import; it says nothing a run needs and
+            # would break --quiet (a run prints just its result line), so it is dropped
+            with contextlib.redirect_stdout(io.StringIO()):
                 yade = importlib.import_module("yade")
         except ImportError:
             continue

@@ -34,14 +34,14 @@ import numpy as np
 
 from hmdem import __version__
 from hmdem.cli import (InputError, OneLineParser, dispatch, int_at_least, new_run_directory, non_negative_number,
-                       number_in, open_bar, positive_number, recorded_command)
+                       number_in, open_bar, positive_number)
 from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_toml
 from hmdem.snapshots import write_collection
 
 from . import calibrations, cases, checkpoint, droplet
 from .calibrate import DROP_RADIUS_CELLS, MIN_RIDGE_CELLS
 from .interrupts import exit_status, interrupted
-from .output import particle_state, write_particles
+from .output import particle_state, run_table, write_particles
 from .simulation import stable_step
 
 PROG = "python -m sph_bridge"
@@ -168,7 +168,7 @@ def progress_bar(args, total: float, unit: str = "s", extend: float = 0.0, desc:
 
 
 def config_of(args, sim, **sections) -> dict:
-    return {"run": {"command": recorded_command(PROG, args.argv), "case": args.command}, **sections,
+    return {"run": run_table(PROG, args.argv, args.command), **sections,
             "parameters": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(sim.params).items()}}
 
 
@@ -566,7 +566,7 @@ def run_calibrate(args) -> int:
                "steps": sum(t.steps for t in cal.trials), "wall_time_s": time.perf_counter() - start}
     if error:
         summary["error"] = error
-    config = {"run": {"command": recorded_command(PROG, args.argv), "case": "calibrate"}, "targets": targets}
+    config = {"run": run_table(PROG, args.argv, "calibrate"), "targets": targets}
     with atomic_run_directory(out) as tmp:
         write_toml(tmp / "config.toml", config)
         write_json(tmp / "summary.json", summary)

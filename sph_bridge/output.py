@@ -1,10 +1,21 @@
-"""ParaView output of particle states (meshio .vtu point clouds; hmdem.snapshots writes the .pvd of a series)."""
+"""Run output: ParaView particle states (meshio .vtu point clouds; hmdem.snapshots writes the .pvd
+of a series) and config.toml's [run] table."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
+
+
+def run_table(prog: str, argv, case: str) -> dict:
+    """config.toml's [run] table of an sph_bridge run: hmdem's (command, versions), plus the
+    numba that compiled the kernels."""
+    import numba
+
+    from hmdem.cli import run_record
+
+    return run_record(prog, argv, case=case, numba=numba.__version__)
 
 
 def particle_state(sim) -> tuple:

@@ -300,6 +300,10 @@ def test_poiseuille_run_directory(poiseuille):
     assert {"config.toml", "summary.json", "timeseries.csv", "profile.png", "flow_rate.png",
             "field.vtu"} <= {p.name for p in out.iterdir()}
     assert summary["status"] == "finished" and len(summary["drives"]) == 3
+    import tomllib
+
+    from hmdem import __version__
+    assert tomllib.loads((out / "config.toml").read_text())["run"]["hmdem_version"] == __version__
     rows = (out / "timeseries.csv").read_text().splitlines()
     assert rows[0] == "step,drive,flow_rate,force_applied_per_node,force_friction_per_node" and len(rows) > 100
     # ParaView's field: walls and mirrors at rest, so the colour range is the fluid's (a new-user pass)
@@ -563,6 +567,7 @@ def test_reduced_permeability_ordering_and_magnitude(reduced_study):
     (["poiseuille", "--density", "8"], "--density"),
     (["permeability", "--hurst", "1.2"], "--hurst"),
     (["permeability", "--workers", "0"], "--workers"),
+    (["permeability", "--workers", "100000"], "--workers"),  # more than the cores: they would only share them
     (["poiseuille", "--g", "0"], "--g"),
     # a new-user pass (decisions #84): a 56 GiB allocation's traceback; planning 1e8 surfaces
     (["poiseuille", "--ny", "100000000"], "--ny"),

@@ -378,6 +378,14 @@ def test_command_line_run_directory_and_bad_input(tmp_path):
     assert summary["max_profile_error"] <= 0.05
     cloud = meshio.read(out / "particles.vtu")
     assert len(cloud.points) == summary["particles"] and "velocity" in cloud.point_data
+    # config.toml replays the run and names the versions that ran it, as hmdem's runs do
+    import numba
+    import tomllib
+
+    from hmdem import __version__
+    run = tomllib.loads((out / "config.toml").read_text())["run"]
+    assert run["command"].startswith("python -m sph_bridge poiseuille --layers 8")
+    assert (run["hmdem_version"], run["numba"], run["numpy"]) == (__version__, numba.__version__, np.__version__)
     for args, name in ((["poiseuille", "--dx", "-1"], "--dx"), (["hydrostatic", "--layers", "4"], "--layers"),
                        (["poiseuille", "--viscosity", "nan"], "--viscosity"),
                        # a new-user pass: 1e300 m/s^2 overflowed to a garbage column with exit 0, and a

@@ -10,7 +10,7 @@ import numpy as np
 from ..flow.diagnostics import regime_at_breakthrough
 from ..flow.fluids import FluidPair
 from ..plots import plot_force_chains, plot_fracture_chronology
-from ..report import pattern_fractal_dimension, radial_pattern_dimension, write_run
+from ..report import pattern_fractal_dimension, radial_pattern_dimension, stop_note, write_run
 from ..snapshots import read_series
 from .geometry import contact_gaps
 from .micromechanics import (chronology_counts, energy_partition, fracture_and_side_resistance, fracture_guidance,
@@ -107,6 +107,8 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None, pac
         "confining_stress_pa": sc.packing.confining_stress,
     }
 
+    stopped = stop_note(rec.status)
+
     def files(tmp: Path) -> None:
         np.savez_compressed(tmp / "fractures.npz", opened=opened, open_at_end=model.open_now, detached=model.detached,
                             max_gap=model.max_gap, opened_time=model.opened_time,
@@ -118,14 +120,14 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None, pac
                             contact_pairs=pairs, contact_forces=forces)
         plot_force_chains(tmp / "force_chains.png", positions, grains.radii, pairs, forces,
                           f"{sc.case.name}: contact forces at t = {state.t:.4g} s "
-                          f"({int(opened.sum())} opened contacts in red on pattern.png)",
+                          f"({int(opened.sum())} opened contacts in red on pattern.png){stopped}",
                           fixed=grains.fixed)
         plot_fracture_chronology(tmp / "fractures.png", net, state.saturation, grains.radii, positions[g[opened]],
                                  model.opened_time[opened], timing["reached"][opened], timing["before_fluid"][opened],
                                  f"{sc.case.name}: {int(opened.sum())} opened contacts by t = {state.t:.4g} s; "
                                  f"{chronology['n_opened_reached_by_fluid']} reached by the fluid,\n"
                                  f"{chronology['n_opened_before_fluid']} of them opened before it came; "
-                                 f"{chronology['n_opened_in_invaded_zone']} inside the invaded zone")
+                                 f"{chronology['n_opened_in_invaded_zone']} inside the invaded zone{stopped}")
 
     config = {"coupling": {k: v for k, v in vars(sc.coupling).items() if k != "aperture_law"},
               "aperture_law": vars(sc.coupling.aperture_law),

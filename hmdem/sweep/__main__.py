@@ -104,7 +104,8 @@ def check_scheduler_address(address: str) -> None:
 
 
 def run_lenormand(args) -> int:
-    from .execute import default_workers, run_sweep
+    from ..cli import available_cores
+    from .execute import run_sweep
     from .grid import lenormand_points, lenormand_spec
     from .manifest import DONE, FAILED, Manifest
     from .runner import BASE_CASE
@@ -113,7 +114,7 @@ def run_lenormand(args) -> int:
     if runs > MAX_RUNS:
         raise InputError(f"--log-m, --log-ca, --seeds: must give at most {MAX_RUNS:,} runs (the manifest lists "
                          f"each), got {runs:,}")
-    cores = default_workers()
+    cores = available_cores()
     if args.scheduler is None and args.workers is not None and args.workers > cores:
         # 100,000 workers broke the embedded cluster's start with a traceback
         raise InputError(f"--workers: must be an integer in [1, {cores}] (this machine's cores: more worker "

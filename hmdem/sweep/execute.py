@@ -9,19 +9,14 @@ runs in flight. A task whose worker dies is resubmitted by the Dask scheduler (u
 
 from __future__ import annotations
 
-import os
 import sys
 import time
 import traceback
 from pathlib import Path
 
+from ..cli import available_cores
 from .manifest import DONE, FAILED, PENDING, Manifest
 from .packed import run_packed, unpack_directory
-
-
-def default_workers() -> int:
-    """One single-threaded worker process per core."""
-    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
 
 
 def error_text(exc: BaseException) -> str:
@@ -80,7 +75,7 @@ def start_client(workers: int | None, scheduler: str | None):
     if scheduler:
         return Client(scheduler, timeout="30s"), None
     with dask.config.set(LOCAL_WORKER_CONFIG):
-        cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
+        cluster = LocalCluster(n_workers=workers or available_cores(), threads_per_worker=1, processes=True,
                                dashboard_address=None, silence_logs=50,  # errors: in the manifest
                                # Ctrl-C is the client's alone; the user's own preloads are kept
                                preload=[*dask.config.get("distributed.worker.preload", []),

@@ -28,14 +28,15 @@ from pathlib import Path
 import numpy as np
 
 from hmdem import __version__
-from hmdem.cli import (InputError, OneLineParser, dispatch, int_at_least, new_run_directory, number_in,
-                       recorded_command)
+from hmdem.cli import (InputError, OneLineParser, available_cores, dispatch, int_at_least, new_run_directory,
+                       number_in)
 from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_toml
 
 from ..interrupts import exit_status
+from ..output import run_table
 from . import figures, studies
 from .lattice import ROW
-from .pool import default_workers, run_in_workers
+from .pool import run_in_workers
 from .rules import REST_DENSITY, viscosity
 
 PROG = "python -m sph_bridge lga"
@@ -109,9 +110,10 @@ def build_parser() -> OneLineParser:
             # each surface is a channel per roughness: 1e8 of them planned until killed
             p.add_argument("--surfaces", type=int_at_least(1, maximum=1000), default=2,
                            help="surfaces per H (default 2, at most 1000)")
-            p.add_argument("--workers", type=int_at_least(1), default=default_workers(),
-                           help="channels run side by side in worker processes, one core each (default: the "
-                                "machine's %(default)s cores; the numbers do not depend on it)")
+            # more workers than cores only share them (the sweep's --workers has the same bound)
+            p.add_argument("--workers", type=int_at_least(1, maximum=available_cores()), default=available_cores(),
+                           help="channels run side by side in worker processes, one core each (default and "
+                                "most: the machine's %(default)s cores; the numbers do not depend on it)")
         p.add_argument("--out", type=Path, help="run directory (must not exist; default runs/lga-<case>-<time>-<pid>)")
         p.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
@@ -158,7 +160,7 @@ class Progress:
 def run_directory(args, config: dict, summary: dict, timeseries: list, write_figures) -> Path:
     out = args.out_dir
     with atomic_run_directory(out) as tmp:
-        write_toml(tmp / "config.toml", {"run": {"command": recorded_command(PROG, args.argv), "case": args.command},
+        write_toml(tmp / "config.toml", {"run": run_table(PROG, args.argv, args.command),
                                          **config})
         write_json(tmp / "summary.json", summary)
         write_rows(tmp / "timeseries.csv", ("step", "drive", "flow_rate", "force_applied_per_node",

@@ -36,11 +36,6 @@ POLL_SECONDS = 0.5
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
-def default_workers() -> int:
-    """The cores this process may run on."""
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-
-
 def _run_channel(conn, slot: int, steps_done, stop) -> None:
     """Worker: receives its job (channel, forcings, plan, density, seed), runs the channel's
     drives and sends ("ok", results, timeseries rows, interrupted) or ("error", traceback) back."""
