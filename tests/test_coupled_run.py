@@ -683,6 +683,38 @@ def test_interrupt_inside_yades_cycles_rewinds_yade_itself(small_sample, monkeyp
     assert np.array_equal(model.grains.positions(), model.positions)
 
 
+@pytest.mark.parametrize("variant", ["one_way", "pv_continue"])
+def test_interrupt_in_a_step_with_no_snapshot_waits_for_its_acceptance(small_sample, monkeypatch, terminal_sigint,
+                                                                       variant):
+    # --one-way and --pv-continue move YADE with nothing to rewind to: a Ctrl-C landing just after
+    # the third step's DEM run used to stop the run there, its grains a step ahead of the flow
+    # state written out (review of session 65). Now the step is finished and accepted first
+    import signal
+
+    from hmdem.dem.assembly import DiscAssembly
+
+    sc = build_radial_scenario(RADIAL_CASES["B3"], packing=small_sample, one_way=variant == "one_way")
+    sc.coupling.pv_rewind = variant != "pv_continue"
+    model = CoupledFlowModel(sc.net, sc.setup, start_grains(sc), sc.coupling)
+    assert model.whole_steps
+    original, calls = DiscAssembly.run, []
+
+    def run_then_interrupt(self, cycles):
+        original(self, cycles)
+        calls.append(cycles)
+        if len(calls) == 3:
+            signal.raise_signal(signal.SIGINT)  # as Ctrl-C in the terminal
+
+    monkeypatch.setattr(DiscAssembly, "run", run_then_interrupt)
+    state, rec = model.run()
+    assert rec.status == "interrupted" and rec.steps >= 1
+    positions = model.grains.positions()
+    np.testing.assert_array_equal(positions, model.positions)
+    # the accepted step's volumes are those of the grains where YADE left them
+    np.testing.assert_array_equal(model.domain_volumes(positions), model.volume)
+    assert len(rec.rows) == rec.steps
+
+
 def test_volume_rate_predictor_saves_iterations_without_changing_the_outcome(reduced_runs, small_sample):
     # decisions.md #18: solving the first p_trial of a step with dV = (dV/dt)^{n-1} dt instead of
     # dV = 0 lets the first P-V iteration converge where the grains move smoothly. Same physics:

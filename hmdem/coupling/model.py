@@ -338,10 +338,18 @@ class CoupledFlowModel(FlowModel):
         return {"points": self.positions.copy(), "pipe_aperture": self.net.pipe_aperture.copy(),
                 "pipe_opened": self.opened.copy()}
 
+    @property
+    def whole_steps(self) -> bool:
+        """--one-way and --pv-continue move the grains with no snapshot of t^n to rewind to, so
+        Ctrl-C and SIGTERM wait for the step's acceptance (a review found them leaving the
+        grains a step ahead of the flow state)."""
+        return self.coupling.one_way or not self.coupling.pv_rewind
+
     def run(self, state=None, progress=None):
         """:meth:`FlowModel.run`; a run stopped inside a step (Ctrl-C, SIGTERM, divergence) is
         rewound to the last accepted step when the rewound P-V iteration kept it, so that the
-        run directory's grains, contacts and apertures belong to the flow state it writes."""
+        run directory's grains, contacts and apertures belong to the flow state it writes
+        (--one-way and --pv-continue finish the step instead, :attr:`whole_steps`)."""
         state, rec = super().run(state, progress)
         if self._inside_step:
             self._rewind()

@@ -111,10 +111,10 @@ def deferred_interrupts():
     """Hold Ctrl-C (SIGINT) and SIGTERM until the block ends, then deliver them to the handlers
     that were there, so that an accepted step updates the state, the records and the grains
     together: an interrupt that landed half-way left a run directory whose state was a step
-    ahead of its last time-series row (found in review). It covers the acceptance only: in the
-    coupled variants that move the grains without a snapshot (--one-way, --pv-continue), an
-    interrupt between the DEM's move and the acceptance still leaves the grains a step ahead.
-    Outside the main thread, where handlers cannot be set, the block runs as it is."""
+    ahead of its last time-series row (found in review). A model whose steps move something it
+    cannot take back (:attr:`FlowModel.whole_steps`) holds them through the whole step. Blocks
+    may nest: the inner one's held signals go to the outer one's hold. Outside the main thread,
+    where handlers cannot be set, the block runs as it is."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -135,6 +135,11 @@ def deferred_interrupts():
 
 class FlowModel:
     """Fixed-grain two-phase flow on a :class:`~hmdem.network.network.Network`."""
+
+    # A step changes nothing outside the state until it is accepted, so an interrupt inside it
+    # simply drops it; a model whose steps do (moving grains with no snapshot to return to)
+    # sets this to hold Ctrl-C and SIGTERM until the step is accepted (deferred_interrupts)
+    whole_steps = False
 
     def __init__(self, net: Network, setup: FlowSetup):
         if setup.inlet not in ("manifold", "split"):
@@ -375,11 +380,12 @@ class FlowModel:
                 if rec.steps >= self.setup.max_steps:
                     rec.status = "max_steps"
                     break
-                sol, fill, dt, limiter = step(state, blocked)
-                self._check_fluid_left(state, sol, dt)
-                blocked = sol.blocked
-                with deferred_interrupts():  # a step is accepted whole, or not at all
-                    self._accept(state, sol, fill, dt, limiter)
+                with deferred_interrupts() if self.whole_steps else contextlib.nullcontext():
+                    sol, fill, dt, limiter = step(state, blocked)
+                    self._check_fluid_left(state, sol, dt)
+                    blocked = sol.blocked
+                    with deferred_interrupts():  # a step is accepted whole, or not at all
+                        self._accept(state, sol, fill, dt, limiter)
                 if progress is not None:
                     progress(self, state)
         except KeyboardInterrupt:
