@@ -81,7 +81,8 @@ def plot_pressure(path, net: Network, pressure: np.ndarray, times, p_in, title: 
     a0.set_aspect("equal")
     a0.set_xlabel("x [mm]")
     a0.set_ylabel("y [mm]")
-    a0.set_title("final pressure", fontsize=9)
+    clipped = f" (scale ends at the 99.5th percentile; max {np.max(pressure) / 1e3:.4g} kPa)" if above else ""
+    a0.set_title(f"final pressure{clipped}", fontsize=9)
     a1.plot(times, np.asarray(p_in) / 1e3, lw=1)
     if early_peak is not None:
         a1.plot([early_peak["time"]], [early_peak["pressure"] / 1e3], "o", mfc="none", color="C3", label="early peak")
