@@ -148,6 +148,13 @@ def open_bar(tqdm, **options):
         raise
 
 
+def stop_note(status: str, end: str) -> str:
+    """Title suffix marking a picture of a run that stopped before its ``end`` status
+    (breakthrough for a displacement, t_max for single-phase flow, finished for sph_bridge):
+    an interrupted, diverged or --max-steps run shows a partial result."""
+    return "" if status == end else f" (stopped: {status})"
+
+
 def record_interrupt(signum: int) -> None:
     """Remember the signal that is stopping the command (a handler calls this before it stops it)."""
     _last_interrupt["signal"] = signum

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .cli import run_record
+from .cli import run_record, stop_note
 from .flow.diagnostics import (classify_regime, early_peak, fractal_dimension,
                                mass_radius_dimension, regime_at_breakthrough)
 from .flow.fluids import WEAK_COMPRESSION
@@ -36,13 +36,6 @@ def radial_pattern_dimension(sc, state) -> float:
     net = sc.net
     centre = net.domain_centroid[net.inlet_domains].mean(axis=0)
     return mass_radius_dimension(net, state.saturation >= 0.5, centre, grain_diameter(net))[0]
-
-
-def stop_note(status: str, two_phase: bool = True) -> str:
-    """Title suffix marking a picture of a run that did not reach its end: breakthrough for a
-    displacement, t_max for single-phase flow. An interrupted, diverged or --max-steps run (or a
-    displacement stopped at t_max) shows a partial pattern."""
-    return "" if status == ("breakthrough" if two_phase else "t_max") else f" (stopped: {status})"
 
 
 def dimension_note(d_f: float) -> str:
@@ -152,7 +145,7 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
         np.savez_compressed(tmp / "network.npz", **arrays)
         np.savez_compressed(tmp / "state.npz", pressure=state.pressure, saturation=state.saturation,
                             invasion_time=state.invasion_time, t=state.t)
-        stopped = stop_note(rec.status, sc.setup.two_phase)
+        stopped = stop_note(rec.status, "breakthrough" if sc.setup.two_phase else "t_max")
         title = f"{sc.case.title}\nCa* = {sc.ca_star:.3g}, M = {sc.setup.fluids.viscosity_ratio:.3g}, t = {state.t:.4g} s, " \
                 f"{summary['regime']}, {dimension_note(summary['fractal_dimension'])}{stopped}"
         plot_pattern(tmp / "pattern.png", net, state.saturation, title, sc.packing_radii, overlay)

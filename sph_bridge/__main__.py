@@ -34,7 +34,7 @@ import numpy as np
 
 from hmdem import __version__
 from hmdem.cli import (InputError, OneLineParser, dispatch, int_at_least, new_run_directory, non_negative_number,
-                       number_in, open_bar, positive_number)
+                       number_in, open_bar, positive_number, stop_note)
 from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_toml
 from hmdem.snapshots import write_collection
 
@@ -215,7 +215,7 @@ def run_case(args) -> int:
         write_rows(tmp / "timeseries.csv", sim.record.columns, sim.record.rows)
         write_particles(tmp / "particles.vtu", particle_state(sim))
         profile_figure(tmp / "profile.png", result.profile, f"{args.command}: {summary['steps']} steps, "
-                       f"{summary['fluid_particles']} fluid particles")
+                       f"{summary['fluid_particles']} fluid particles", status)
     print(f"{args.command}: {status} after {sim.record.steps} steps; "
           + ", ".join(f"{k} = {v:.4g}" for k, v in result.summary.items() if isinstance(v, float)))
     print(f"run directory: {out}")
@@ -227,7 +227,7 @@ def run_figures(sim) -> dict:
             "simulated_time_s": sim.t, "wall_time_s": time.perf_counter() - sim.wall_start}
 
 
-def profile_figure(path: Path, profile, title: str) -> None:
+def profile_figure(path: Path, profile, title: str, status: str) -> None:
     from hmdem.plots import plt
 
     z, measured, zt, theory, label = profile
@@ -237,7 +237,7 @@ def profile_figure(path: Path, profile, title: str) -> None:
     ax.set_xlabel(label)
     ax.set_ylabel("z [mm]")
     ax.legend()
-    ax.set_title(title)
+    ax.set_title(title + stop_note(status, "finished"))
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
@@ -493,7 +493,8 @@ def side_view(path: Path, sim, shape, summary: dict, ridge: bool) -> None:
     ax.set_ylabel("z [mm]")
     ax.legend(fontsize=7, loc="upper right")
     ax.set_title(f"{summary['geometry']}: h = {shape.height * 1e3:.3f} mm, w = {shape.width * 1e3:.3f} mm, "
-                 f"cap angle {shape.contact_angle_deg:.1f}°, {summary['fluid_particles']} particles", fontsize=9)
+                 f"cap angle {shape.contact_angle_deg:.1f}°, {summary['fluid_particles']} particles"
+                 f"{stop_note(summary['status'], 'finished')}", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=130)
     plt.close(fig)

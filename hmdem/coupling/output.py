@@ -9,8 +9,9 @@ import numpy as np
 
 from ..flow.diagnostics import regime_at_breakthrough
 from ..flow.fluids import FluidPair
+from ..cli import stop_note
 from ..plots import plot_force_chains, plot_fracture_chronology
-from ..report import pattern_fractal_dimension, radial_pattern_dimension, stop_note, write_run
+from ..report import pattern_fractal_dimension, radial_pattern_dimension, write_run
 from ..snapshots import read_series
 from .geometry import contact_gaps
 from .micromechanics import (chronology_counts, energy_partition, fracture_and_side_resistance, fracture_guidance,
@@ -107,7 +108,7 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None, pac
         "confining_stress_pa": sc.packing.confining_stress,
     }
 
-    stopped = stop_note(rec.status)
+    stopped = stop_note(rec.status, "breakthrough")
 
     def files(tmp: Path) -> None:
         np.savez_compressed(tmp / "fractures.npz", opened=opened, open_at_end=model.open_now, detached=model.detached,

@@ -29,7 +29,7 @@ import numpy as np
 
 from hmdem import __version__
 from hmdem.cli import (InputError, OneLineParser, available_cores, dispatch, int_at_least, new_run_directory,
-                       number_in)
+                       number_in, stop_note)
 from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_toml
 
 from ..interrupts import exit_status
@@ -240,7 +240,7 @@ def run_poiseuille(args) -> int:
             figures.velocity_profile(tmp / "profile.png", channel, done[-1], summary, summary["viscosity_eq6"])
             figures.flow_rate_against_force(tmp / "flow_rate.png", summary["drives"],
                                             f"ν from the slope: {summary['viscosity_fit']:.4f} (Eq. 6: "
-                                            f"{summary['viscosity_eq6']:.4f})")
+                                            f"{summary['viscosity_eq6']:.4f}){stop_note(status, 'finished')}")
             figures.write_field(tmp / "field.vtu", channel.geometry, done[-1])
 
     out = run_directory(args, {**common_config(args), "channel": {"mirror": args.mirror,
@@ -308,7 +308,7 @@ def run_rough(args) -> int:
             last = channel.results[-1]
             figures.velocity_field(tmp / "velocity.png", channel.geometry, last,
                                    f"H = {args.hurst:g}, δ_av/(2 y_max) = {studies.opening(channel):.3f}, "
-                                   f"Re = {rows[-1]['reynolds']:.1f}")
+                                   f"Re = {rows[-1]['reynolds']:.1f}{stop_note(status, 'finished')}")
             figures.write_field(tmp / "field.vtu", channel.geometry, last)
 
     out = run_directory(args, {**common_config(args), "rough": rough_config(args, channel, forcings)},
@@ -360,7 +360,7 @@ def run_permeability(args) -> int:
 
     def write(tmp):
         if len(points) >= 2:
-            figures.collapse(tmp / "collapse.png", points, summary["alpha"], summary["alpha_error"])
+            figures.collapse(tmp / "collapse.png", points, summary["alpha"], summary["alpha_error"], status)
         write_rows(tmp / "points.csv", ("name", "hurst", "surface_seed", "opening", "phi", "eq11", "mean_aperture"),
                    [(p["name"], p["hurst"], p["surface_seed"], p["opening"], p["phi"], p["eq11"],
                      p["mean_aperture"]) for p in points])
@@ -441,10 +441,11 @@ def run_nonlinear(args) -> int:
 
     def write(tmp):
         if series:
-            figures.drag_against_reynolds(tmp / "drag.png", series)
+            figures.drag_against_reynolds(tmp / "drag.png", series, status)
         if rough.results:
             figures.velocity_field(tmp / "velocity.png", rough.geometry, rough.results[-1],
-                                   f"H = {args.hurst:g}, Re = {series['rough'][-1]['reynolds']:.0f}")
+                                   f"H = {args.hurst:g}, Re = {series['rough'][-1]['reynolds']:.0f}"
+                                   f"{stop_note(status, 'finished')}")
             figures.write_field(tmp / "field.vtu", rough.geometry, rough.results[-1])
 
     out = run_directory(args, {**common_config(args), "rough": rough_config(args, rough, []),

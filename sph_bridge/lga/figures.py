@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
+from hmdem.cli import stop_note
+
 from .flow import FlowResult, box_average
 from .lattice import ROW, Geometry
 from .studies import CONTINUUM, PAPER_ALPHA, eq11
@@ -32,8 +34,8 @@ def velocity_profile(path: Path, channel, result: FlowResult, fit: dict, nu_theo
     ax.set_xlabel("row")
     ax.set_ylabel("u_x [lattice units / step]")
     ax.legend(fontsize=8)
-    ax.set_title(f"Poiseuille: ν fit {fit['viscosity_fit']:.4f}, u_max/u_mean {fit['u_max_over_mean']:.3f}",
-                 fontsize=9)
+    ax.set_title(f"Poiseuille: ν fit {fit['viscosity_fit']:.4f}, u_max/u_mean {fit['u_max_over_mean']:.3f}"
+                 f"{stop_note(fit['status'], 'finished')}", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
@@ -91,9 +93,9 @@ def velocity_field(path: Path, geometry: Geometry, result: FlowResult, title: st
     plt.close(fig)
 
 
-def collapse(path: Path, points: list[dict], alpha: float, alpha_error: float) -> None:
+def collapse(path: Path, points: list[dict], alpha: float, alpha_error: float, status: str) -> None:
     """(delta_H/delta_av)^3 against delta_av/(2 y_max) per H, with Eq. 11, the fitted exponent and
-    the digest's continuum (lattice-Boltzmann Stokes) values."""
+    the digest's continuum (lattice-Boltzmann Stokes) values; titled when the study stopped early."""
     from hmdem.plots import plt
 
     fig, ax = plt.subplots(figsize=(6, 4.5))
@@ -113,13 +115,15 @@ def collapse(path: Path, points: list[dict], alpha: float, alpha_error: float) -
     ax.set_ylabel("(δ_H / δ_av)³")
     ax.set_ylim(0, 0.6)
     ax.legend(fontsize=7)
+    ax.set_title(stop_note(status, "finished").strip(" ()"), fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
 
 
-def drag_against_reynolds(path: Path, series: dict[str, list[dict]]) -> None:
-    """Delta P / Q normalised by its lowest-Re value, against Re, for each channel (seed 003 Fig. 11)."""
+def drag_against_reynolds(path: Path, series: dict[str, list[dict]], status: str) -> None:
+    """Delta P / Q normalised by its lowest-Re value, against Re, for each channel (seed 003 Fig. 11);
+    titled when the ladder stopped early."""
     from hmdem.plots import plt
 
     fig, ax = plt.subplots(figsize=(5.5, 4))
@@ -130,6 +134,7 @@ def drag_against_reynolds(path: Path, series: dict[str, list[dict]]) -> None:
     ax.set_xlabel("Re = Q / ν")
     ax.set_ylabel("(ΔP/Q) / (ΔP/Q at the lowest Re)")
     ax.legend(fontsize=8)
+    ax.set_title(stop_note(status, "finished").strip(" ()"), fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
