@@ -26,7 +26,7 @@ from pathlib import Path
 
 from . import __version__
 from .cli import (OneLineParser, add_contact_arguments, contact_gap_fraction, dispatch, grain_count, interrupted_status,
-                  new_run_directory, non_negative_int, number_in, positive_number, read_compacted_packing)
+                  new_run_directory, non_negative_int, number_in, positive_number, read_compacted_packing, stop_note)
 from .network.contact_graph import NEAR_CONTACT_GAP
 from .rundir import atomic_run_directory
 from .rundir import write_json as write_strict_json
@@ -134,7 +134,7 @@ class _BiaxialProgress:
             self.loading = None
 
 
-def plot_biaxial(path: Path, res) -> None:
+def plot_biaxial(path: Path, res, status: str) -> None:
     from .plots import plt
 
     ea = 100 * res.strain_axial
@@ -153,7 +153,8 @@ def plot_biaxial(path: Path, res) -> None:
     a1.set_xlabel("axial strain [%]")
     a1.set_ylabel("stress [kPa]")
     a1.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)  # below: no curve hidden
-    a1.set_title(f"biaxial test, {res.n_grains} discs, sigma3 = {res.sigma3_target / 1e3:g} kPa", fontsize=9)
+    a1.set_title(f"biaxial test, {res.n_grains} discs, sigma3 = {res.sigma3_target / 1e3:g} kPa"
+                 f"{stop_note(status, 'finished')}", fontsize=9)
     a2.plot(ea, 100 * res.strain_volumetric, label="volumetric (area) strain")
     a2.plot(ea, 100 * res.strain_lateral, label="lateral strain")
     a2.axvspan(100 * lo, 100 * hi, color="0.85", zorder=0, label=f"nu fit: nu = {res.poisson_ratio:.3f} (paper 0.102)")
@@ -216,7 +217,7 @@ def run_biaxial_command(args, argv) -> int:
             for row in zip(res.cycles, res.time, res.strain_axial, res.strain_lateral, res.strain_volumetric,
                            res.sigma1, res.sigma3, res.deviator):
                 w.writerow([int(row[0])] + [f"{v:.9g}" for v in row[1:]])
-        plot_biaxial(tmp / "biaxial.png", res)
+        plot_biaxial(tmp / "biaxial.png", res, summary["status"])
     if res.status == "interrupted":
         print(f"{PROG}: interrupted in the loading at axial strain {summary['max_axial_strain']:.3%}; the curve so "
               f"far and what it gives (NaN where it did not get far enough) are in {out}", file=sys.stderr)
@@ -238,7 +239,7 @@ def run_biaxial_command(args, argv) -> int:
 
 # ----------------------------------------------------------------------------------------- darcy
 
-def plot_permeability(path: Path, rows: list[dict], packing_row: dict | None) -> None:
+def plot_permeability(path: Path, rows: list[dict], packing_row: dict | None, status: str) -> None:
     from .coupling.darcy import PAPER_PERMEABILITY, PAPER_STRESS
     from .plots import plt
 
@@ -254,6 +255,7 @@ def plot_permeability(path: Path, rows: list[dict], packing_row: dict | None) ->
     ax.set_yscale("log")
     ax.set_xlabel("confining stress [MPa]")
     ax.set_ylabel("permeability [m$^2$]")
+    ax.set_title(f"Darcy permeability against confining stress{stop_note(status, 'finished')}", fontsize=9)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3, which="both")
     fig.tight_layout()
@@ -345,7 +347,7 @@ def run_darcy_command(args, argv) -> int:
                 w.writerow(["sweep"] + [_fmt(r.get(k)) for k in CSV_KEYS] + [_fmt(r["ratio_to_kozeny_carman"])])
             w.writerow(["stored_packing"] + [_fmt(stored_row.get(k)) for k in CSV_KEYS]
                        + [_fmt(stored_row["ratio_to_kozeny_carman"])])
-        plot_permeability(tmp / "permeability.png", rows, stored_row)
+        plot_permeability(tmp / "permeability.png", rows, stored_row, status)
     for r in rows:
         print(f"{r['confining_stress'] / 1e6:7.3f} MPa: k = {r['permeability']:.3e} m^2, KC = {r['kozeny_carman']:.3e}"
               f" (k/KC = {r['ratio_to_kozeny_carman']:.3f}), porosity {r['porosity_2d']:.4f}")
