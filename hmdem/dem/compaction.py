@@ -67,7 +67,7 @@ class CompactionBar:
     def __call__(self, cycles: int, stresses: np.ndarray) -> None:
         if self.bar is None:  # opened at the first report, so that a closed bar can start again
             self.bar = open_bar(self.tqdm, desc="compaction", unit=" cycles", file=sys.stderr,
-                                bar_format="{desc}: {n} cycles [{elapsed}{postfix}]")
+                                bar_format="{desc}: {n} cycles [{elapsed}]{postfix}")
         self.latest = (cycles, stresses.mean())
         now = time.perf_counter()
         if now - self.last >= self.every_s:
