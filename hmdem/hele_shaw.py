@@ -395,7 +395,7 @@ def run_radial(args) -> int:
         bar.close(model, state)
     summary = write_radial_run(out, sc, model, state, rec, argv=recorded_argv(args),
                                snapshots=None if snapshots is None else snapshots.taken,
-                               packing=recorded_packing)
+                               packing=recorded_packing, launcher=getattr(args, "launcher", None))
     early = ""
     if summary["early_peak_fell"]:
         early = (f" (early peak {summary['early_peak_injection_pressure_pa']:.4g} Pa "
@@ -407,13 +407,15 @@ def run_radial(args) -> int:
     return finish(rec, summary, out)
 
 
-def main(argv=None) -> int:
+def main(argv=None, launcher: str | None = None) -> int:
+    """The command line; ``launcher`` names a YADE launcher calling it (config.toml's [launcher])."""
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0].startswith("--") and argv[0] not in ("--help", "-h", "--version"):
         argv = ["linear", *argv]
     parser = build_parser()
     args = parser.parse_args(argv)
     args.argv = argv  # config.toml's command: the arguments given, also when YADE's launchers call main
+    args.launcher = launcher
     # SIGTERM ends a run like Ctrl-C: status "interrupted", the partial run directory written
     return dispatch(PROG, parser, args, {"linear": run_linear, "radial": run_radial})
 

@@ -88,6 +88,7 @@ def plot_pressure(path, net: Network, pressure: np.ndarray, times, p_in, title: 
         a1.plot([early_peak["time"]], [early_peak["pressure"] / 1e3], "o", mfc="none", color="C3", label="early peak")
         a1.legend(fontsize=8, loc="lower right")
     a1.set_xlabel("t [s]")
+    a1.ticklabel_format(axis="x", style="sci", scilimits=(-2, 3))  # B3's 0.00025 s ticks crowded the axis
     a1.set_ylabel("mean injection pressure [kPa]")
     a1.set_title(title, fontsize=9)
     a1.grid(alpha=0.3)

@@ -357,6 +357,9 @@ def test_yade_batch_runs_the_radial_script(tmp_path):
         # the command recorded is the one the script ran, not yade's own command line, and the
         # numpy it ran on is Debian's, the one YADE loaded (round-off can differ from the venv's)
         assert config["run"]["command"].startswith("python -m hmdem.hele_shaw radial --case B3")
+        # ... and [launcher] says which YADE launcher ran it, on which interpreter (a new-user pass)
+        assert config["launcher"]["command"] == f"yade-batch, table line {name!r}, yade_scripts/radial_injection.py"
+        assert config["launcher"]["python"].startswith("/usr/bin/python3")  # Debian's, not the venv's
         system_numpy = subprocess.run(["/usr/bin/python3", "-c", "import numpy; print(numpy.__version__)"],
                                       capture_output=True, text=True).stdout.strip()
         assert config["run"]["numpy"] == system_numpy

@@ -12,7 +12,8 @@ packing ['' = the shipped sample; a path in quotes, its k_n comes with it], flag
 any further flags of the CLI, comma-separated, e.g. '--damping=0.3,--snapshots=40': YADE splits
 a table's columns at blanks and allows no quoting],
 out [runs/batch/<job description>, or a fresh runs/<case>-<time> outside a batch]. The run is
-``python -m hmdem.hele_shaw radial`` with those flags, and its run directory is the same. The yade
+``python -m hmdem.hele_shaw radial`` with those flags (and --quiet in a batch, whose log is a
+file), and its run directory is the same; config.toml's [launcher] names the YADE launcher. The yade
 launcher runs Debian's Python, so the repository root goes on sys.path first and the project
 venv's pure-Python packages (meshio, tqdm) last, behind Debian's numpy that YADE has already
 loaded (1.24 on Debian 12, the venv's is 2.x; config.toml records which). The model is the same,
@@ -40,7 +41,9 @@ from yade.params import table  # noqa: E402
 
 from hmdem.hele_shaw import main  # noqa: E402
 
-argv = ["radial", "--case", table.case, "--quiet"]
+description = O.tags["description"] if "description" in O.tags.keys() else ""
+# a batch job's bar would fill its log file; `yade -n -x` shows it on the terminal
+argv = ["radial", "--case", table.case] + (["--quiet"] if description else [])
 if table.oneWay:
     argv.append("--one-way")
 if table.maxSteps:  # a table may write 2e4; 2.5 goes on to the CLI's check
@@ -64,8 +67,9 @@ if table.flags:  # 0 or '' for none, as the other columns' "unset"
               f"flags, got {table.flags!r}", file=sys.stderr)
         sys.exit(2)
     argv += [flag for flag in table.flags.split(",") if flag]  # the CLI checks each (a repeated flag: the last)
-description = O.tags["description"] if "description" in O.tags.keys() else ""
 out = table.out or (f"runs/batch/{description}" if description else "")
 if out:
     argv += ["--out", out]
-sys.exit(main(argv))
+launcher = (f"yade-batch, table line {description!r}," if description else "yade -n -x") + \
+    " yade_scripts/radial_injection.py"
+sys.exit(main(argv, launcher=launcher))

@@ -3,6 +3,7 @@ the contact force network and the micro-mechanical summary keys (issue 3)."""
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +37,11 @@ def fracture_resistance_series(run: Path) -> list[tuple[float, int, float, float
             for t, saturation, aperture, opened in read_series(run, len(net["domain_volume"]))]
 
 
-def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None, packing=None) -> dict:
+def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None, packing=None,
+                     launcher: str | None = None) -> dict:
+    """The radial run directory (:func:`~hmdem.report.write_run` plus the fracture map, force
+    chains and micro-mechanical keys). ``launcher``: the YADE launcher that called the CLI, if
+    one did; config.toml's [launcher] names it beside the CLI command it ran."""
     grains, net = model.grains, sc.net
     positions = model.positions
     initial_positions = sc.packing.centres.copy()
@@ -141,6 +146,8 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None, pac
                       "contact_stiffness_n_per_m": grains.k_n, "stiffness_ratio": grains.k_s / grains.k_n,
                       "friction": grains.friction, "fixed_port": sc.fixed_port,
                       "boundary_hold": sc.boundary_hold}}
+    if launcher:
+        config["launcher"] = {"command": launcher, "python": sys.executable}
     overlay = positions[g[opened]]
     return write_run(out, sc, model, state, rec, seed=0, argv=argv, summary_extra=extra, extra_files=files,
                      overlay=overlay, config_extra=config, snapshots=snapshots,
