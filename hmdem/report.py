@@ -38,9 +38,10 @@ def radial_pattern_dimension(sc, state) -> float:
     return mass_radius_dimension(net, state.saturation >= 0.5, centre, grain_diameter(net))[0]
 
 
-def dimension_note(d_f: float) -> str:
-    """D_f as titles and the closing line give it; none is read without an invaded pattern."""
-    return f"D_f = {d_f:.3f}" if np.isfinite(d_f) else "no D_f (no invaded pattern)"
+def dimension_note(d_f: float | None) -> str:
+    """D_f as titles and the closing line give it; none is read without an invaded pattern
+    (nan, or null as summary.json writes it)."""
+    return f"D_f = {d_f:.3f}" if d_f is not None and np.isfinite(d_f) else "no D_f (no invaded pattern)"
 
 
 def summarize(sc, model, state, rec, d_f: float | None = None) -> dict:

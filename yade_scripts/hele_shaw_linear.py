@@ -33,6 +33,7 @@ read_yade_table("yade_scripts/hele_shaw_linear.py", utils.readParamsFromTable, l
 from yade.params import table  # noqa: E402
 
 from hmdem.sweep.grid import LOG_CA_STAR_RANGE, LOG_M_RANGE, SweepPoint  # noqa: E402
+from hmdem.report import dimension_note  # noqa: E402
 from hmdem.sweep.runner import NotThisPoint, RunFailed, run_point  # noqa: E402
 
 for column, (low, high) in (("logM", LOG_M_RANGE), ("logCa", LOG_CA_STAR_RANGE)):  # the sweep's own bounds
@@ -52,4 +53,5 @@ except RunFailed as exc:  # one line and the run's own exit status (yade-batch l
 except (InputError, NotThisPoint) as exc:  # a packing the run refuses, an out of another run: one line, exit 2
     print(f"yade_scripts/hele_shaw_linear.py: {exc}", file=sys.stderr)
     sys.exit(2)
-print(f"{point.run_id}: {summary['status']}, {summary['regime']}, D_f = {summary['fractal_dimension']}; run directory {out}")
+print(f"{point.run_id}: {summary['status']}, {summary['regime']}, {dimension_note(summary['fractal_dimension'])}; "
+      f"run directory {out}")
