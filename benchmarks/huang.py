@@ -30,7 +30,7 @@ def row(summary: dict) -> list:
             percent(s.get("dem_wall_fraction", float("nan"))), percent(s.get("rewind_wall_fraction", float("nan"))),
             f"{s['peak_injection_pressure_pa']:.3g}", s["n_opened_contacts"], s.get("n_open_contacts_at_end", "-"),
             s.get("n_detached_contacts", "-"),
-            f"{s['fractal_dimension']:.3f}", s["regime"]]
+            "-" if s["fractal_dimension"] is None else f"{s['fractal_dimension']:.3f}", s["regime"]]
 
 
 def table(out: Path, cases) -> str:

@@ -217,7 +217,7 @@ def run_biaxial_command(args, argv) -> int:
             for row in zip(res.cycles, res.time, res.strain_axial, res.strain_lateral, res.strain_volumetric,
                            res.sigma1, res.sigma3, res.deviator):
                 w.writerow([int(row[0])] + [f"{v:.9g}" for v in row[1:]])
-        plot_biaxial(tmp / "biaxial.png", res, summary["status"])
+        plot_biaxial(tmp / "biaxial.png", res, res.status)  # the full-rate curve's own status
     if res.status == "interrupted":
         print(f"{PROG}: interrupted in the loading at axial strain {summary['max_axial_strain']:.3%}; the curve so "
               f"far and what it gives (NaN where it did not get far enough) are in {out}", file=sys.stderr)

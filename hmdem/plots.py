@@ -73,15 +73,16 @@ def plot_pressure(path, net: Network, pressure: np.ndarray, times, p_in, title: 
     # bottom of the scale: it ends at the 99.5th percentile of the domains, and the bar's arrow
     # says that some lie above
     top = float(np.percentile(pressure, 99.5)) / 1e3
-    above = float(np.max(pressure)) / 1e3 > top + 1e-9 * abs(top) + 1e-12
     low = min(float(np.min(pressure)) / 1e3, top)
+    # cut only where the scale ends below the maximum (top == low: the full range, vmax None)
+    cut = float(np.max(pressure)) / 1e3 > top + 1e-9 * abs(top) + 1e-12 and top > low
     pc = a0.tripcolor(tri, facecolors=p / 1e3, cmap="viridis", edgecolors="none", vmin=low,
                       vmax=top if top > low else None)
-    fig.colorbar(pc, ax=a0, label="p [kPa]", extend="max" if above else "neither")
+    fig.colorbar(pc, ax=a0, label="p [kPa]", extend="max" if cut else "neither")
     a0.set_aspect("equal")
     a0.set_xlabel("x [mm]")
     a0.set_ylabel("y [mm]")
-    clipped = f" (scale ends at the 99.5th percentile; max {np.max(pressure) / 1e3:.4g} kPa)" if above else ""
+    clipped = f" (scale ends at the 99.5th percentile; max {np.max(pressure) / 1e3:.4g} kPa)" if cut else ""
     a0.set_title(f"final pressure{clipped}", fontsize=9)
     a1.plot(times, np.asarray(p_in) / 1e3, lw=1)
     if early_peak is not None:

@@ -39,9 +39,9 @@ def radial_pattern_dimension(sc, state) -> float:
 
 
 def dimension_note(d_f: float | None) -> str:
-    """D_f as titles and the closing line give it; none is read without an invaded pattern
-    (nan, or null as summary.json writes it)."""
-    return f"D_f = {d_f:.3f}" if d_f is not None and np.isfinite(d_f) else "no D_f (no invaded pattern)"
+    """D_f as titles and the closing line give it; none is read on a pattern too small for two
+    box sizes, or on none (nan, or null as summary.json writes it)."""
+    return f"D_f = {d_f:.3f}" if d_f is not None and np.isfinite(d_f) else "no D_f (pattern too small)"
 
 
 def summarize(sc, model, state, rec, d_f: float | None = None) -> dict:
@@ -148,7 +148,7 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
                             invasion_time=state.invasion_time, t=state.t)
         stopped = stop_note(rec.status, "breakthrough" if sc.setup.two_phase else "t_max")
         title = f"{sc.case.title}\nCa* = {sc.ca_star:.3g}, M = {sc.setup.fluids.viscosity_ratio:.3g}, t = {state.t:.4g} s, " \
-                f"{summary['regime']}, {dimension_note(summary['fractal_dimension'])}{stopped}"
+                f"{summary['regime']}, {dimension_note(summary['fractal_dimension'])}" + (f"\n{stopped.strip()}" if stopped else "")
         plot_pattern(tmp / "pattern.png", net, state.saturation, title, sc.packing_radii, overlay)
         marked = {"time": summary["early_peak_time_s"], "pressure": summary["early_peak_injection_pressure_pa"]}
         plot_pressure(tmp / "pressure.png", net, state.pressure, *rec.injection_pressure(),

@@ -358,7 +358,8 @@ def test_yade_batch_runs_the_radial_script(tmp_path):
         # numpy it ran on is Debian's, the one YADE loaded (round-off can differ from the venv's)
         assert config["run"]["command"].startswith("python -m hmdem.hele_shaw radial --case B3")
         # ... and [launcher] says which YADE launcher ran it, on which interpreter (a new-user pass)
-        assert config["launcher"]["command"] == f"yade-batch, table line {name!r}, yade_scripts/radial_injection.py"
+        line = 2 if name == "two_way" else 3  # the table file's line of the row
+        assert config["launcher"]["command"] == f"yade-batch {table}:{line} ({name!r}) yade_scripts/radial_injection.py"
         assert config["launcher"]["python"].startswith("/usr/bin/python3")  # Debian's, not the venv's
         system_numpy = subprocess.run(["/usr/bin/python3", "-c", "import numpy; print(numpy.__version__)"],
                                       capture_output=True, text=True).stdout.strip()
@@ -716,6 +717,32 @@ def test_interrupt_in_a_step_with_no_snapshot_waits_for_its_acceptance(small_sam
     # the accepted step's volumes are those of the grains where YADE left them
     np.testing.assert_array_equal(model.domain_volumes(positions), model.volume)
     assert len(rec.rows) == rec.steps
+
+
+def test_a_step_that_diverges_with_an_interrupt_held_is_reported_as_diverged(small_sample, monkeypatch,
+                                                                             terminal_sigint):
+    # a Ctrl-C held through a --one-way step that then diverges: the divergence ends the run and
+    # keeps its reason (re-raising the held interrupt over it made the run "interrupted" with no
+    # message, review of session 66)
+    import signal
+
+    from hmdem.flow.simulation import SimulationDiverged
+
+    sc = build_radial_scenario(RADIAL_CASES["B3"], packing=small_sample, one_way=True)
+    model = CoupledFlowModel(sc.net, sc.setup, start_grains(sc), sc.coupling)
+    original, calls = model._check_fluid_left, []
+
+    def interrupt_then_diverge(state, sol, dt):
+        calls.append(dt)
+        if len(calls) == 3:
+            signal.raise_signal(signal.SIGINT)  # held
+            raise SimulationDiverged("test divergence")
+        original(state, sol, dt)
+
+    monkeypatch.setattr(model, "_check_fluid_left", interrupt_then_diverge)
+    state, rec = model.run()
+    assert (rec.status, rec.message, rec.steps) == ("diverged", "test divergence", 2)
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # put back
 
 
 def test_volume_rate_predictor_saves_iterations_without_changing_the_outcome(reduced_runs, small_sample):

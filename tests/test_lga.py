@@ -567,7 +567,6 @@ def test_reduced_permeability_ordering_and_magnitude(reduced_study):
     (["poiseuille", "--density", "8"], "--density"),
     (["permeability", "--hurst", "1.2"], "--hurst"),
     (["permeability", "--workers", "0"], "--workers"),
-    (["permeability", "--workers", "100000"], "--workers"),  # more than the cores: they would only share them
     (["poiseuille", "--g", "0"], "--g"),
     # a new-user pass (decisions #84): a 56 GiB allocation's traceback; planning 1e8 surfaces
     (["poiseuille", "--ny", "100000000"], "--ny"),
@@ -597,3 +596,13 @@ def test_ctrl_c_leaves_a_valid_partial_directory(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "interrupted"
     assert (out / "config.toml").exists() and (out / "timeseries.csv").exists()
+
+
+def test_workers_beyond_the_cores_run_on_the_cores_with_a_warning(capsys, monkeypatch):
+    # a new-user pass: 100,000 workers were accepted and started as processes; a review: refusing
+    # them broke replaying a command recorded on a larger machine (the numbers do not depend on it)
+    from sph_bridge.lga import cli
+
+    monkeypatch.setattr(cli, "available_cores", lambda: 2)
+    assert cli.worker_count(100000) == 2 and "--workers 100000 on 2 core(s); running 2" in capsys.readouterr().err
+    assert cli.worker_count(1) == 1 and capsys.readouterr().err == ""

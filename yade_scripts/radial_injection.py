@@ -20,6 +20,7 @@ loaded (1.24 on Debian 12, the venv's is 2.x; config.toml records which). The mo
 the round-off is not, and B3's fracturing amplifies it: 300 steps of a two-way B3 opened 588
 contacts under yade-batch and 598 from the CLI.
 """
+import os
 import sys
 from pathlib import Path
 
@@ -70,6 +71,7 @@ if table.flags:  # 0 or '' for none, as the other columns' "unset"
 out = table.out or (f"runs/batch/{description}" if description else "")
 if out:
     argv += ["--out", out]
-launcher = (f"yade-batch, table line {description!r}," if description else "yade -n -x") + \
-    " yade_scripts/radial_injection.py"
+# yade-batch starts a job with YADE_BATCH=<table>:<line>, which names the row that set its columns
+batch = os.environ.get("YADE_BATCH", "")
+launcher = (f"yade-batch {batch} ({description!r})" if description else "yade -n -x") + " yade_scripts/radial_injection.py"
 sys.exit(main(argv, launcher=launcher))

@@ -113,12 +113,16 @@ def deferred_interrupts():
     together: an interrupt that landed half-way left a run directory whose state was a step
     ahead of its last time-series row (found in review). A model whose steps move something it
     cannot take back (:attr:`FlowModel.whole_steps`) holds them through the whole step. Blocks
-    may nest: the inner one's held signals go to the outer one's hold. Outside the main thread,
-    where handlers cannot be set, the block runs as it is."""
+    may nest: the inner one's held signals go to the outer one's hold. A block that fails (a
+    divergence, a failed solve) ends the run by itself, and its reason is kept: the held signals
+    are then dropped, as an interrupt re-raised over it turned a diverged run into an
+    interrupted one with no message (review). Outside the main thread, where handlers cannot be
+    set, the block runs as it is."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    held, previous = [], {}
+    held, previous, failed = [], {}, False
+    stop_signals = {signal.SIGINT, signal.SIGTERM}
     try:  # a handler is recorded before it is replaced, so that finally puts back every one replaced
         for sig in (signal.SIGINT, signal.SIGTERM):
             handler = signal.getsignal(sig)
@@ -126,10 +130,18 @@ def deferred_interrupts():
                 previous[sig] = handler
                 signal.signal(sig, lambda signum, frame: held.append(signum))
         yield
+    except Exception:
+        failed = True
+        raise
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-        for signum in held:  # also when the block raised: the interrupt still ends the run
+        # blocked while the handlers go back, so that none lands between two of them
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, stop_signals)
+        try:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+        for signum in [] if failed else held:
             signal.raise_signal(signum)
 
 

@@ -110,10 +110,9 @@ def build_parser() -> OneLineParser:
             # each surface is a channel per roughness: 1e8 of them planned until killed
             p.add_argument("--surfaces", type=int_at_least(1, maximum=1000), default=2,
                            help="surfaces per H (default 2, at most 1000)")
-            # more workers than cores only share them (the sweep's --workers has the same bound)
-            p.add_argument("--workers", type=int_at_least(1, maximum=available_cores()), default=available_cores(),
-                           help="channels run side by side in worker processes, one core each (default and "
-                                "most: the machine's %(default)s cores; the numbers do not depend on it)")
+            p.add_argument("--workers", type=int_at_least(1), default=available_cores(),
+                           help="channels run side by side in worker processes, one core each (default: the "
+                                "machine's %(default)s cores, and at most those; the numbers do not depend on it)")
         p.add_argument("--out", type=Path, help="run directory (must not exist; default runs/lga-<case>-<time>-<pid>)")
         p.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
@@ -331,7 +330,18 @@ def rough_config(args, channel, forcings) -> dict:
 # --- permeability ---------------------------------------------------------------------------
 
 
+def worker_count(requested: int) -> int:
+    """--workers, at most the cores this process may use: more would only share them (100,000
+    would start as many processes), and as the numbers do not depend on the count, a recorded
+    command from a larger machine still replays, with a warning, rather than being refused."""
+    cores = available_cores()
+    if requested > cores:
+        print(f"{PROG}: warning: --workers {requested} on {cores} core(s); running {cores}", file=sys.stderr)
+    return min(requested, cores)
+
+
 def run_permeability(args) -> int:
+    args.workers = worker_count(args.workers)
     args.out_dir = new_run_directory(args.out, f"lga-{args.command}")
     started = time.perf_counter()
     hursts = args.hurst or [0.3, 0.5, 0.7]
