@@ -113,15 +113,14 @@ def deferred_interrupts():
     together: an interrupt that landed half-way left a run directory whose state was a step
     ahead of its last time-series row (found in review). A model whose steps move something it
     cannot take back (:attr:`FlowModel.whole_steps`) holds them through the whole step. Blocks
-    may nest: the inner one's held signals go to the outer one's hold. A block that fails (a
-    divergence, a failed solve) ends the run by itself, and its reason is kept: the held signals
-    are then dropped, as an interrupt re-raised over it turned a diverged run into an
-    interrupted one with no message (review). Outside the main thread, where handlers cannot be
-    set, the block runs as it is."""
+    may nest: the inner one's held signals go to the outer one's hold. Held signals are
+    delivered also when the block raised (a caller may catch that and go on; FlowModel.run reads
+    a failure beneath the interrupt). Outside the main thread, where handlers cannot be set, the
+    block runs as it is."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    held, previous, failed = [], {}, False
+    held, previous = [], {}
     stop_signals = {signal.SIGINT, signal.SIGTERM}
     try:  # a handler is recorded before it is replaced, so that finally puts back every one replaced
         for sig in (signal.SIGINT, signal.SIGTERM):
@@ -130,9 +129,6 @@ def deferred_interrupts():
                 previous[sig] = handler
                 signal.signal(sig, lambda signum, frame: held.append(signum))
         yield
-    except Exception:
-        failed = True
-        raise
     finally:
         # blocked while the handlers go back, so that none lands between two of them
         mask = signal.pthread_sigmask(signal.SIG_BLOCK, stop_signals)
@@ -141,7 +137,7 @@ def deferred_interrupts():
                 signal.signal(sig, handler)
         finally:
             signal.pthread_sigmask(signal.SIG_SETMASK, mask)
-        for signum in [] if failed else held:
+        for signum in held:  # also when the block raised: the interrupt still ends the run
             signal.raise_signal(signum)
 
 
@@ -400,18 +396,28 @@ class FlowModel:
                         self._accept(state, sol, fill, dt, limiter)
                 if progress is not None:
                     progress(self, state)
-        except KeyboardInterrupt:
-            rec.status = "interrupted"
-        except SimulationDiverged as exc:
-            rec.status = "diverged"
-            rec.message = str(exc)
-        except LinearSolveError as exc:  # the flow state is that of the last completed step
-            rec.status = "diverged"
-            rec.message = f"step {rec.steps + 1} at t = {state.t:.6g} s: {exc}"
+        except KeyboardInterrupt as exc:
+            # an interrupt held through a step that then failed is delivered over the failure
+            # (deferred_interrupts): the failure ended the run and keeps its reason (review)
+            failure = exc.__context__
+            if isinstance(failure, (SimulationDiverged, LinearSolveError)):
+                self._record_failure(rec, state, failure)
+            else:
+                rec.status = "interrupted"
+        except (SimulationDiverged, LinearSolveError) as exc:
+            self._record_failure(rec, state, exc)
         rec.wall_time = time.perf_counter() - rec.wall_start
         if rec.status == "breakthrough":
             rec.breakthrough_time = state.t
         return state, rec
+
+    @staticmethod
+    def _record_failure(rec: RunRecord, state: FlowState, exc: Exception) -> None:
+        """A run that could not go on: status "diverged" and the reason (a failed linear solve
+        leaves the flow state of the last completed step)."""
+        rec.status = "diverged"
+        rec.message = str(exc) if isinstance(exc, SimulationDiverged) else \
+            f"step {rec.steps + 1} at t = {state.t:.6g} s: {exc}"
 
     def _check_fluid_left(self, state: FlowState, sol, dt: float) -> None:
         """Stop the run (before the step is accepted) if a domain's pressure is at or below minus
