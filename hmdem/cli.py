@@ -132,6 +132,16 @@ def available_cores() -> int:
     return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
 
 
+def worker_count(requested: int, prog: str) -> int:
+    """--workers, at most the cores this process may use: more would only share them (100,000
+    would start as many processes), and as the numbers do not depend on the count, a recorded
+    command from a larger machine still replays, with a warning, rather than being refused."""
+    cores = available_cores()
+    if requested > cores:
+        print(f"{prog}: warning: --workers {requested} on {cores} core(s); running {cores}", file=sys.stderr)
+    return min(requested, cores)
+
+
 def recorded_command(prog: str, argv) -> str:
     """config.toml's command: ``prog`` and the arguments, shell-quoted so that it replays with
     a blank in a path (a review found ' '.join)."""

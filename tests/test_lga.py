@@ -601,8 +601,9 @@ def test_ctrl_c_leaves_a_valid_partial_directory(tmp_path):
 def test_workers_beyond_the_cores_run_on_the_cores_with_a_warning(capsys, monkeypatch):
     # a new-user pass: 100,000 workers were accepted and started as processes; a review: refusing
     # them broke replaying a command recorded on a larger machine (the numbers do not depend on it)
-    from sph_bridge.lga import cli
+    from hmdem import cli
 
     monkeypatch.setattr(cli, "available_cores", lambda: 2)
-    assert cli.worker_count(100000) == 2 and "--workers 100000 on 2 core(s); running 2" in capsys.readouterr().err
-    assert cli.worker_count(1) == 1 and capsys.readouterr().err == ""
+    assert cli.worker_count(100000, "lga") == 2
+    assert "lga: warning: --workers 100000 on 2 core(s); running 2" in capsys.readouterr().err
+    assert cli.worker_count(1, "lga") == 1 and capsys.readouterr().err == ""

@@ -85,9 +85,8 @@ def test_axis_spec_gives_evenly_spaced_values_with_both_ends():
      "--packing"),  # 34 um grains under 0.42 mm apertures
     (["--seeds", "0"], "--seeds"),
     (["--workers", "-1"], "--workers"),
-    # a new-user pass (decisions #84): 100,000 workers broke the embedded cluster's start with a
-    # traceback; 1e9 seeds spent minutes planning 3e10 runs
-    (["--workers", "100000"], "--workers"),
+    (["--workers", "0"], "--workers"),
+    # a new-user pass (decisions #84): 1e9 seeds spent minutes planning 3e10 runs
     (["--seeds", "1000000000"], "--seeds"),
     (["--log-m", "-5:5:1000", "--log-ca", "-8:2:1000"], "--log-m"),
     (["--scheduler", "notanaddress"], "--scheduler"),  # before the sweep directory is made
@@ -127,6 +126,22 @@ def test_an_unreachable_scheduler_is_one_line_and_keeps_the_sweep_directory(tmp_
     assert "Traceback" not in proc.stderr
     runs = json.loads((out / "manifest.json").read_text())["runs"]
     assert len(runs) == 4 and all(r["status"] == "pending" for r in runs.values())
+
+
+def test_workers_beyond_the_cores_run_on_the_cores_with_a_warning(tmp_path, capsys, monkeypatch):
+    # a new-user pass (decisions #84): 100,000 workers broke the embedded cluster's start with a
+    # traceback. Refusing them (as then) also refused the reference sweep's --workers 2 on a one-core
+    # machine and a command recorded on a larger one; the runs do not depend on the count (lga's too)
+    from hmdem import cli
+    from hmdem.sweep import execute
+
+    given = []
+    monkeypatch.setattr(cli, "available_cores", lambda: 1)
+    monkeypatch.setattr(execute, "run_sweep", lambda manifest, packing, workers, *rest, **kw: given.append(workers)
+                        or manifest.counts())
+    assert sweep_main(["lenormand", *GRID, "--workers", "100000", "--out", str(tmp_path / "s"), "--quiet"]) == 0
+    assert given == [1]
+    assert "python -m hmdem.sweep: warning: --workers 100000 on 1 core(s); running 1" in capsys.readouterr().err
 
 
 def test_a_sweep_directory_cannot_be_resumed_with_another_grid(tmp_path):

@@ -104,7 +104,7 @@ def check_scheduler_address(address: str) -> None:
 
 
 def run_lenormand(args) -> int:
-    from ..cli import available_cores
+    from ..cli import worker_count
     from .execute import run_sweep
     from .grid import lenormand_points, lenormand_spec
     from .manifest import DONE, FAILED, Manifest
@@ -114,11 +114,6 @@ def run_lenormand(args) -> int:
     if runs > MAX_RUNS:
         raise InputError(f"--log-m, --log-ca, --seeds: must give at most {MAX_RUNS:,} runs (the manifest lists "
                          f"each), got {runs:,}")
-    cores = available_cores()
-    if args.scheduler is None and args.workers is not None and args.workers > cores:
-        # 100,000 workers broke the embedded cluster's start with a traceback
-        raise InputError(f"--workers: must be an integer in [1, {cores}] (this machine's cores: more worker "
-                         f"processes only share them; --scheduler reaches a larger cluster), got {args.workers}")
     if args.packing is not None:  # a missing, unreadable or misfit file is one line, not a failure per point
         check_aperture_fits_grains(CASES[BASE_CASE].mean_aperture, read_packing(args.packing).radii, False,
                                    can_set=False)
@@ -137,6 +132,10 @@ def run_lenormand(args) -> int:
         manifest = Manifest.open(out, spec, points)
     except ValueError as exc:
         raise InputError(f"--out: {exc}") from None
+    if args.scheduler is None and args.workers is not None:
+        # 100,000 workers broke the embedded cluster's start with a traceback; a command recorded on
+        # a larger machine still replays (the runs do not depend on the count), as lga's does
+        args.workers = worker_count(args.workers, PROG)
     print(f"sweep directory: {out} ({len(points)} runs, {len(manifest.todo())} to do)", file=sys.stderr)
     interrupted = False
     try:

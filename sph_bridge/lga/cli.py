@@ -29,7 +29,7 @@ import numpy as np
 
 from hmdem import __version__
 from hmdem.cli import (InputError, OneLineParser, available_cores, dispatch, int_at_least, new_run_directory,
-                       number_in, stop_note)
+                       number_in, stop_note, worker_count)
 from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_toml
 
 from ..interrupts import exit_status
@@ -330,19 +330,9 @@ def rough_config(args, channel, forcings) -> dict:
 # --- permeability ---------------------------------------------------------------------------
 
 
-def worker_count(requested: int) -> int:
-    """--workers, at most the cores this process may use: more would only share them (100,000
-    would start as many processes), and as the numbers do not depend on the count, a recorded
-    command from a larger machine still replays, with a warning, rather than being refused."""
-    cores = available_cores()
-    if requested > cores:
-        print(f"{PROG}: warning: --workers {requested} on {cores} core(s); running {cores}", file=sys.stderr)
-    return min(requested, cores)
-
-
 def run_permeability(args) -> int:
-    args.workers = worker_count(args.workers)
-    args.out_dir = new_run_directory(args.out, f"lga-{args.command}")
+    args.out_dir = new_run_directory(args.out, f"lga-{args.command}")  # a bad --out is one line, no warning
+    args.workers = worker_count(args.workers, PROG)
     started = time.perf_counter()
     hursts = args.hurst or [0.3, 0.5, 0.7]
     roughnesses = args.relative_roughness or [1.0 / o for o in PAPER_OPENINGS]
