@@ -378,6 +378,11 @@ def run_droplet(args) -> int:
             bar.close()
     summary = droplet_summary(args, sim, shape, sigma, source, status)
     summary["settled"] = settled
+    summary["height_drift"] = droplet.height_drift(shapes)  # the last settle check's, for a drop that has not settled
+    if status == "finished" and not settled:
+        print(f"droplet: warning: the drop had not settled after {droplet.MAX_EXTENSION} times its minimum relaxation "
+              f"(its mean height still moved {summary['height_drift']:+.2%} over the last quarter, settled below "
+              f"{droplet.SETTLED:.1%}): its shape is the last quarter's mean", file=sys.stderr)
     summary["plate_sized_for_deg"] = plate_theta if args.gravity > 0 else math.nan
     if summary["plate_edge_clearance_m"] < droplet.INTERACTION_RANGE * sim.params.h:  # NaN: no shape, no warning
         print(f"droplet: warning: the contact line ended {summary['plate_edge_clearance_m'] * 1e3:.2f} mm from the "
@@ -494,7 +499,8 @@ def side_view(path: Path, sim, shape, summary: dict, ridge: bool) -> None:
     ax.legend(fontsize=7, loc="upper right")
     ax.set_title(f"{summary['geometry']}: h = {shape.height * 1e3:.3f} mm, w = {shape.width * 1e3:.3f} mm, "
                  f"cap angle {shape.contact_angle_deg:.1f}°, {summary['fluid_particles']} particles"
-                 f"{stop_note(summary['status'], 'finished')}", fontsize=9)
+                 f"{stop_note(summary['status'], 'finished')}"
+                 f"{' (not settled)' if summary['status'] == 'finished' and not summary['settled'] else ''}", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=130)
     plt.close(fig)

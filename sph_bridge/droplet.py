@@ -299,9 +299,17 @@ def has_settled(shapes: list[DropShape], first_check: int) -> bool:
     k = len(shapes)
     if k < first_check or k % SETTLE_WINDOW:
         return False
+    return bool(abs(height_drift(shapes)) < SETTLED)
+
+
+def height_drift(shapes: list[DropShape]) -> float:
+    """The mean height of the last :data:`SETTLE_WINDOW` samples relative to the window before,
+    minus 1 (NaN with fewer than two windows): what :func:`has_settled` compares with :data:`SETTLED`."""
+    if len(shapes) < 2 * SETTLE_WINDOW:
+        return math.nan
     last = np.mean([s.height for s in shapes[-SETTLE_WINDOW:]])
     before = np.mean([s.height for s in shapes[-2 * SETTLE_WINDOW:-SETTLE_WINDOW]])
-    return bool(abs(last / before - 1.0) < SETTLED)
+    return float(last / before - 1.0)
 
 
 ROOM_BELOW_TARGET_DEG = 10.0  # a gravity drop's plate holds its equilibrium this much flatter

@@ -649,3 +649,25 @@ def test_a_drop_running_past_its_minimum_duration_moves_the_bar_on(capsys):
         advance(SimpleNamespace(t=t))
         assert bar.n == t and bar.total == pytest.approx(end)
     bar.close()
+
+
+def test_a_drop_that_never_settles_says_so(tmp_path, monkeypatch, capsys):
+    # a new-user pass (session 65): a drop that had not settled by MAX_EXTENSION minimum
+    # relaxations ended "finished" with nothing said but summary.json's "settled": false
+    import signal
+
+    from sph_bridge import __main__ as cli
+
+    monkeypatch.setattr(signal, "signal", lambda *args: None)  # the CLI's SIGTERM handler stays out of pytest
+    monkeypatch.setattr(droplet, "RELAXATION_TIMES", 0.8)  # a tenth of a relaxation's time, for speed
+    monkeypatch.setattr(droplet, "MAX_EXTENSION", 1)  # one minimum relaxation ...
+    monkeypatch.setattr(droplet, "SETTLED", 0.0)  # ... and no settle check passes
+    out = tmp_path / "unsettled"
+    assert cli.main(["droplet", "--dx", "1e-3", "--volume", "6e-7", "--gravity", "0", "--s-ff", "4e-6",
+                     "--s-sf", "3e-6", "--c0", "3", "--quiet", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "finished" and summary["settled"] is False
+    assert summary["simulated_time_s"] > 0 and math.isfinite(summary["height_drift"])
+    err = capsys.readouterr().err
+    assert "droplet: warning: the drop had not settled after 1 times its minimum relaxation" in err
+    assert f"{summary['height_drift']:+.2%}" in err
