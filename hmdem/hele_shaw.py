@@ -18,18 +18,34 @@ from pathlib import Path
 from . import __version__
 from .cases import CASES, default_packing_path
 from .cli import (InputError, OneLineParser, add_contact_arguments, check_aperture_fits_grains, contact_gap_fraction,
-                  dispatch, interrupted_status, local_damping, new_run_directory, non_negative_int, positive_int,
-                  positive_number, read_compacted_packing, read_packing, relative_tolerance)
+                  dispatch, interrupted_status, local_damping, new_run_directory, non_negative_int, number_in,
+                  positive_int, positive_number, read_compacted_packing, read_packing, relative_tolerance)
 from .flow.darcy_transient import STEADY_T_D, read_darcy_test
 from .flow.fluids import WEAK_COMPRESSION
 from .network.contact_graph import BOUNDARY_HOLDS, NEAR_CONTACT_GAP
 from .network.packing import GRAIN_DENSITY
 from .snapshots import SnapshotRecorder
+from .sweep.grid import LOG_CA_STAR_RANGE, LOG_M_RANGE
 
 PROG = "python -m hmdem.hele_shaw"
+
 CASE_NAMES = tuple(CASES)
 RADIAL_NAMES = ("A1", "A3", "B1", "B3")
 EXPLICIT_DEFAULT_MAX_STEPS = 100_000
+
+
+def power_of_ten_within(log_range: tuple[float, float]):
+    """argparse type: a number in [10^a, 10^b], where the runs were measured to reach
+    breakthrough (the sweep's axes, decisions #77, #78): M = 1e300 was taken and ran for ever
+    with nothing invaded, its pipes' conductances underflowing (a new-user pass)."""
+    low, high = (10.0 ** e for e in log_range)
+    return number_in(f"a number in [1e{log_range[0]:g}, 1e{log_range[1]:g}] (where runs were measured to reach "
+                     "breakthrough)",
+                     lambda v: low * (1 - 1e-12) <= v <= high * (1 + 1e-12))
+
+
+viscosity_ratio = power_of_ten_within(LOG_M_RANGE)
+modified_capillary_number = power_of_ten_within(LOG_CA_STAR_RANGE)
 
 
 class _Parser(OneLineParser):
@@ -43,10 +59,11 @@ def build_parser() -> argparse.ArgumentParser:
     lin = sub.add_parser("linear", help="fixed-grain cases of seed 004 §4.1 and App. D")
     lin.add_argument("--case", choices=CASE_NAMES, default="vf", help="vf, cf1, sd, cf2 (Lenormand), chen, darcy")
     rate = lin.add_mutually_exclusive_group()
-    rate.add_argument("--ca-star", type=positive_number, help="modified capillary number Ca* (seed 004 Eq. 24)")
+    rate.add_argument("--ca-star", type=modified_capillary_number,
+                      help="modified capillary number Ca* (seed 004 Eq. 24), in [1e-10, 1e4]")
     rate.add_argument("--rate", type=positive_number, help="injection rate Q [m^3/s per metre of cell depth]")
-    lin.add_argument("--viscosity-ratio", type=positive_number,
-                     help="M = eta_inv / eta_def; eta_def is kept, eta_inv = M eta_def")
+    lin.add_argument("--viscosity-ratio", type=viscosity_ratio,
+                     help="M = eta_inv / eta_def in [1e-6, 1e6]; eta_def is kept, eta_inv = M eta_def")
     lin.add_argument("--mean-aperture", type=positive_number, help="mean pipe aperture [m] (default 0.42e-3)")
     lin.add_argument("--seed", type=non_negative_int, default=0, help="aperture field seed (default 0)")
     lin.add_argument("--dt", type=positive_number,
@@ -59,9 +76,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     rad = sub.add_parser("radial", help="movable-grain Huang cases of seed 004 §4.2 (YADE)")
     rad.add_argument("--case", choices=RADIAL_NAMES, default="A1", help="A1, A3 (5 cP), B1, B3 (176 cP)")
-    rad.add_argument("--viscosity-ratio", type=positive_number,
-                     help="M = eta_inv / eta_air; eta_inv = M x 0.018 cP")
-    rad.add_argument("--ca-star", type=positive_number, help="modified capillary number Ca* (seed 004 Eq. 24)")
+    rad.add_argument("--viscosity-ratio", type=viscosity_ratio,
+                     help="M = eta_inv / eta_air in [1e-6, 1e6]; eta_inv = M x 0.018 cP")
+    rad.add_argument("--ca-star", type=modified_capillary_number,
+                     help="modified capillary number Ca* (seed 004 Eq. 24), in [1e-10, 1e4]")
     rad.add_argument("--sigma", type=positive_number,
                      help="inlet perimeter Sigma of Ca* [m] (default 0.2 x sample side: the paper's 0.25 mm of "
                           "1.25 mm; the injection domain's own perimeter is in summary.json)")

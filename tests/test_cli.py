@@ -63,8 +63,15 @@ DATA = Path(__file__).resolve().parent.parent / "hmdem" / "data"
     # a new-user pass: a directory; a near-contact gap of 50 radii ran
     (["radial", "--packing", str(DATA)], "--packing"),
     (["radial", "--contact-gap", "1.01"], "--contact-gap"),
-    # a new-user pass: M = 1e300 scaled the step to 3e303 s and the plot overflowed at the end
+    # a new-user pass: M = 1e300 scaled the step to 3e303 s and the plot overflowed at the end;
+    # with sd's Ca* it ran for ever with nothing invaded (another pass): M and Ca* keep to the
+    # sweep's bounds, where the runs were measured to reach breakthrough (decisions #77, #78)
     (["linear", "--case", "vf", "--viscosity-ratio", "1e300"], "--viscosity-ratio"),
+    (["linear", "--case", "sd", "--viscosity-ratio", "1e300"], "--viscosity-ratio"),
+    (["linear", "--case", "sd", "--viscosity-ratio", "2e6"], "--viscosity-ratio"),
+    (["linear", "--ca-star", "1e5"], "--ca-star"),
+    (["radial", "--viscosity-ratio", "1e-7"], "--viscosity-ratio"),
+    (["radial", "--ca-star", "1e-11"], "--ca-star"),
 ])
 def test_bad_input_one_line_exit_2_nothing_written(tmp_path, args, name):
     out = tmp_path / "run"
@@ -95,7 +102,8 @@ def test_a_negative_number_in_any_notation_gets_the_options_own_message(value, c
     with pytest.raises(SystemExit) as exc:
         main(["linear", "--ca-star", value, "--out", "unused"])
     assert exc.value.code == 2
-    assert capsys.readouterr().err.strip() == (f"python -m hmdem.hele_shaw: --ca-star: must be a finite number > 0, "
+    assert capsys.readouterr().err.strip() == (f"python -m hmdem.hele_shaw: --ca-star: must be a number in "
+                                               f"[1e-10, 1e4] (where runs were measured to reach breakthrough), "
                                                f"got {value!r}")
 
 
