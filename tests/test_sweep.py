@@ -442,6 +442,16 @@ def test_collect_rejects_a_directory_without_runs(tmp_path):
     assert list(tmp_path.iterdir()) == []  # nothing written
 
 
+@pytest.mark.parametrize("name, says", [("a_file", "'a_file' is a file, not a directory"),
+                                         ("nothing", "no such directory 'nothing'")])
+def test_collect_names_what_its_dir_is(name, says, tmp_path):
+    # a new-user pass: `collect README.md` said "no such directory" of a file that exists
+    (tmp_path / "a_file").write_text("x")
+    proc = subprocess.run([sys.executable, "-m", "hmdem.sweep", "collect", name], capture_output=True, text=True,
+                          cwd=tmp_path)
+    assert proc.returncode == 2 and proc.stderr.strip() == f"python -m hmdem.sweep: dir: {says}"
+
+
 def test_collect_takes_only_lenormand_runs_and_writes_nothing_without_one(tmp_path, capsys):
     # a new-user pass: collect on a radial run directory wrote sweep.csv and phase_diagram.png
     # into it. Lattice (chen) and single-phase (darcy) runs are no point of Lenormand's diagram

@@ -160,7 +160,8 @@ def run_lenormand(args) -> int:
 
 def run_collect(args) -> int:
     if not args.dir.is_dir():
-        raise InputError(f"dir: no such directory {str(args.dir)!r}")
+        raise InputError(f"dir: {str(args.dir)!r} is a file, not a directory" if args.dir.exists()
+                         else f"dir: no such directory {str(args.dir)!r}")
     if (args.dir / "summary.json").is_file():  # its tables would land among one run's files
         raise InputError(f"dir: {str(args.dir)!r} is a run directory; give the directory that holds the runs")
     from .table import collect, other_run_directories
