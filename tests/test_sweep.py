@@ -486,3 +486,24 @@ def test_runs_kept_aside_and_partial_writes_are_not_read_as_runs(tmp_path):
         for f in ("summary.json", "config.toml"):
             (tmp_path / name / f).write_text("")
     assert run_directories(tmp_path) == [tmp_path / "M-1_Ca-2_s0"]
+
+
+def test_a_stopped_sweeps_diagram_shows_its_points_not_run(tmp_path, monkeypatch):
+    # a new-user pass: after Ctrl-C at 19 of 90 runs the diagram read "19 runs", its finished
+    # cells stretched over the grid points that never ran
+    import hmdem.plots  # noqa: F401 (first: it silences Debian's Axes3D warning)
+    import matplotlib.figure
+
+    from hmdem.sweep.phase_diagram import plot_phase_diagram
+
+    saved = []
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", lambda fig, path, **kw: saved.append(fig))
+    rows = [{"log_m": m, "log_ca_star": c, "status": "breakthrough", "regime": "capillary fingering",
+             "fractal_dimension": 1.8, "peak_compression": 0.01, "ca": "", "ca_star": 10.0 ** c}
+            for m, c in ((-5.0, -8.0), (-5.0, -6.0))]
+    planned = [(m, c) for m in (-5.0, 2.0) for c in (-8.0, -6.0)]
+    plot_phase_diagram(tmp_path / "d.png", rows, None, planned)
+    ax = saved[0].axes[0]
+    assert ax.get_title().startswith("Lenormand phase diagram: 2 of 4 runs")
+    assert sorted(t.get_position() for t in ax.texts if t.get_text() == "not run") == [(2.0, -8.0), (2.0, -6.0)]
+    assert ax.get_xlim() == (-8.5, 5.5)  # cells half a spacing beyond both planned columns

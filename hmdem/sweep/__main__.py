@@ -74,8 +74,9 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def write_tables(root: Path, rows: list[dict] | None = None) -> list[dict]:
-    """sweep.csv and phase_diagram.png of ``root`` (``rows``: already collected); the rows."""
+def write_tables(root: Path, rows: list[dict] | None = None, planned=None) -> list[dict]:
+    """sweep.csv and phase_diagram.png of ``root`` (``rows``: already collected; ``planned``: a
+    sweep's runs as (log M, log Ca*)); the rows."""
     from .boundaries import capillary_crossover
     from .phase_diagram import plot_phase_diagram
     from .table import collect, write_csv
@@ -85,7 +86,7 @@ def write_tables(root: Path, rows: list[dict] | None = None) -> list[dict]:
     finished = [root / r["run"] for r in rows if r["status"] != "failed"]
     # the crossover lines are drawn for the network of the first finished run (seed 0 first)
     crossover = capillary_crossover(finished[0]) if finished else None
-    plot_phase_diagram(root / "phase_diagram.png", rows, crossover)
+    plot_phase_diagram(root / "phase_diagram.png", rows, crossover, planned)
     return rows
 
 
@@ -149,7 +150,7 @@ def run_lenormand(args) -> int:
         interrupted = True
         manifest.reconcile()
         counts = manifest.counts()
-    rows = write_tables(out)
+    rows = write_tables(out, planned=[(p.log_m, p.log_ca_star) for p in points])
     print(f"{counts[DONE]} done, {counts[FAILED]} failed, {len(points) - counts[DONE] - counts[FAILED]} not run; "
           f"{len(rows)} rows in {out / 'sweep.csv'}")
     if interrupted:

@@ -54,20 +54,29 @@ def point_summary(rows: list[dict]) -> dict:
     return out
 
 
-def plot_phase_diagram(path: Path, rows: list[dict], crossover: float | None = None) -> None:
-    """Write the diagram; ``crossover``: Ca*_c at M >= 1 (:func:`.boundaries.capillary_crossover`)."""
+def plot_phase_diagram(path: Path, rows: list[dict], crossover: float | None = None,
+                       planned: list[tuple[float, float]] | None = None) -> None:
+    """Write the diagram; ``crossover``: Ca*_c at M >= 1 (:func:`.boundaries.capillary_crossover`);
+    ``planned``: a sweep's runs as (log M, log Ca*), one per seed, so that a sweep stopped part-way
+    shows its points not yet run as such (they took the finished cells' room, a new-user pass)."""
     from matplotlib.patches import Patch, Rectangle
 
     from ..plots import plt  # Agg backend, Debian's Axes3D warning silenced
 
     points = point_summary(rows)
+    not_run = {(round(float(m), 6), round(float(c), 6)) for m, c in planned or ()} - set(points)
     flagged = [p[4] for p in points.values() if p[4] > WEAK_COMPRESSION]  # peak p/K beyond the constant-K range
     stars = [(math.log10(m), math.log10(c), regime) for m, c, regime in LENORMAND_EXPERIMENTS]
     fig, ax = plt.subplots(figsize=(8.5, 6.5))
-    if points:
-        ms = np.array(sorted({k[0] for k in points}))
-        cs = np.array(sorted({k[1] for k in points}))
+    if points or not_run:
+        ms = np.array(sorted({k[0] for k in points} | {k[0] for k in not_run}))
+        cs = np.array(sorted({k[1] for k in points} | {k[1] for k in not_run}))
         m_edges, c_edges = cell_edges(ms), cell_edges(cs)
+        for m, c in not_run:
+            i, j = np.searchsorted(ms, m), np.searchsorted(cs, c)
+            ax.add_patch(Rectangle((m_edges[i], c_edges[j]), m_edges[i + 1] - m_edges[i], c_edges[j + 1] - c_edges[j],
+                                   facecolor="white", edgecolor="lightgrey", hatch=".."))
+            ax.text(m, c, "not run", ha="center", va="center", fontsize=8, color="grey", zorder=3)
         for (m, c), (regime, d_f, n, failed, compression) in points.items():
             i, j = np.searchsorted(ms, m), np.searchsorted(cs, c)
             ax.add_patch(Rectangle((m_edges[i], c_edges[j]), m_edges[i + 1] - m_edges[i], c_edges[j + 1] - c_edges[j],
@@ -106,6 +115,8 @@ def plot_phase_diagram(path: Path, rows: list[dict], crossover: float | None = N
         right.set_ylabel(f"log$_{{10}}$ Ca = Ca* ā / L  (this sample: Ca* / {1 / 10 ** shift:.1f})")
     handles = [Patch(color=c, label=name) for name, c in REGIME_COLOURS.items()]
     handles.append(Patch(facecolor=OTHER_COLOUR, hatch="//", label="failed / other"))
+    if not_run:
+        handles.append(Patch(facecolor="white", edgecolor="lightgrey", hatch="..", label="not run (sweep stopped)"))
     if flagged:
         handles.append(plt.Line2D([], [], ls="", label=f"'p/K {max(flagged):.2f} !': peak pressure / bulk modulus "
                                   f"beyond {WEAK_COMPRESSION}, the constant-K range"))
@@ -119,7 +130,8 @@ def plot_phase_diagram(path: Path, rows: list[dict], crossover: float | None = N
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=8)
     # Ca* (Eq. 24) scales Ca by each sample's L / ā: the right axis converts with this sample's,
     # the stars sit where Lenormand's micromodel (150 mm / 0.35 mm) puts its experiments
-    ax.set_title(f"Lenormand phase diagram: {len(rows)} runs, regime by majority over seeds", fontsize=10)
+    runs = f"{len(rows)} of {len(planned)} runs" if planned and len(rows) < len(planned) else f"{len(rows)} runs"
+    ax.set_title(f"Lenormand phase diagram: {runs}, regime by majority over seeds", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=130)
     plt.close(fig)
