@@ -491,7 +491,9 @@ def test_runs_kept_aside_and_partial_writes_are_not_read_as_runs(tmp_path):
 def test_a_stopped_sweeps_diagram_shows_its_points_not_run(tmp_path, monkeypatch):
     # a new-user pass: after Ctrl-C at 19 of 90 runs the diagram read "19 runs", its finished
     # cells stretched over the grid points that never ran
-    import hmdem.plots  # noqa: F401 (first: it silences Debian's Axes3D warning)
+    import importlib
+
+    importlib.import_module("hmdem.plots")  # first: it silences Debian's Axes3D warning
     import matplotlib.figure
 
     from hmdem.sweep.phase_diagram import plot_phase_diagram
