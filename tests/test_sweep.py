@@ -509,3 +509,36 @@ def test_a_stopped_sweeps_diagram_shows_its_points_not_run(tmp_path, monkeypatch
     assert ax.get_title().startswith("Lenormand phase diagram: 2 of 4 runs")
     assert sorted(t.get_position() for t in ax.texts if t.get_text() == "not run") == [(2.0, -8.0), (2.0, -6.0)]
     assert ax.get_xlim() == (-8.5, 5.5)  # cells half a spacing beyond both planned columns
+
+
+def test_a_workers_warnings_name_the_run_directory_in_the_sweep(monkeypatch, capsys):
+    # a new-user pass: the p/K warning of a sweep point named the worker's scratch copy
+    # (/tmp/hmdem-sweep-.../<run id>), gone by the time it was read
+    from hmdem import hele_shaw
+    from hmdem.sweep.runner import RunFailed
+
+    def warns(args):
+        print(f"{hele_shaw.PROG}: warning: {args.out}: a domain's pressure reached 0.13 of K", file=sys.stderr)
+        return 1
+
+    monkeypatch.setattr(hele_shaw, "run_linear", warns)
+    point = SweepPoint(-5.0, 0.0, 0)
+    with pytest.raises(RunFailed):
+        run_packed(point)
+    err = capsys.readouterr().err
+    assert f"warning: runs/{point.run_id}: a domain's pressure" in err and "hmdem-sweep-" not in err
+
+
+def test_scratch_directories_of_stopped_workers_are_removed(tmp_path):
+    # a new-user pass: each Ctrl-C of a sweep left its workers' scratch directories in /tmp
+    import subprocess as sp
+
+    from hmdem.sweep.packed import SCRATCH_PREFIX, remove_orphaned_scratch
+
+    ended = sp.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    gone, alive = tmp_path / f"{SCRATCH_PREFIX}{ended.stdout.strip()}-abc", tmp_path / f"{SCRATCH_PREFIX}{os.getpid()}-def"
+    other = tmp_path / f"{SCRATCH_PREFIX}oldstyle"  # not ours to judge: no process id
+    for d in (gone, alive, other):
+        (d / "run").mkdir(parents=True)
+    remove_orphaned_scratch(tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([alive.name, other.name])

@@ -44,11 +44,34 @@ def unpack_directory(data: bytes, final: Path) -> None:
         raise
 
 
+SCRATCH_PREFIX = "hmdem-sweep-"  # then the worker's process id
+
+
+def remove_orphaned_scratch(root: Path | None = None) -> None:
+    """Remove the scratch directories of workers no longer running: a sweep stopped by Ctrl-C
+    ends its workers mid-run, before they clean up (a new-user pass found two per stop)."""
+    for scratch in Path(root or tempfile.gettempdir()).glob(f"{SCRATCH_PREFIX}*-*"):
+        pid = scratch.name[len(SCRATCH_PREFIX):].split("-")[0]
+        if pid.isdigit() and not process_running(int(pid)):
+            shutil.rmtree(scratch, ignore_errors=True)
+
+
+def process_running(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's
+        return True
+    return True
+
+
 def run_packed(point: SweepPoint, packing: bytes | None = None, packing_name: str | None = None) -> tuple[dict, bytes]:
     """Run ``point`` in a scratch directory (``packing``: the bytes of a packing .npz, None for
     the shipped one, ``packing_name`` its path on the client); its summary and the packed run
     directory, whose config.toml records the command as run from the sweep directory."""
-    with tempfile.TemporaryDirectory(prefix="hmdem-sweep-") as scratch:
+    remove_orphaned_scratch()
+    with tempfile.TemporaryDirectory(prefix=f"{SCRATCH_PREFIX}{os.getpid()}-") as scratch:
         packing_path = None
         if packing is not None:
             packing_path = Path(scratch) / "packing.npz"

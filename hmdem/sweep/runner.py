@@ -12,8 +12,9 @@ import io
 import json
 import shlex
 import shutil
+import sys
 import tomllib
-from contextlib import redirect_stdout
+from contextlib import redirect_stderr, redirect_stdout
 from pathlib import Path
 
 from .grid import SweepPoint
@@ -51,6 +52,11 @@ class RunFailed(RuntimeError):
 
 class NotThisPoint(ValueError):
     """``out`` exists and is not a run directory of the point asked for."""
+
+
+def point_out(argv: list[str]) -> str:
+    """The --out of a run's arguments."""
+    return argv[argv.index("--out") + 1]
 
 
 def point_arguments(argv: list[str]) -> tuple[list[str], str | None]:
@@ -128,8 +134,15 @@ def run_point(point: SweepPoint, out: Path, packing: str | None = None, recorded
     args = build_parser().parse_args(argv)
     args.argv = recorded_as or argv  # config.toml's command (hele_shaw.recorded_argv)
     args.packing_recorded = recorded_packing
-    with redirect_stdout(io.StringIO()):  # the run's two result lines; the sweep reports instead
-        code = run_linear(args)
+    shown = point_out(args.argv)
+    messages = io.StringIO()
+    try:
+        # the run's two result lines are dropped (the sweep reports instead); its warnings name the
+        # run directory as recorded, not a worker's scratch copy (a new-user pass found /tmp/... paths)
+        with redirect_stdout(io.StringIO()), redirect_stderr(messages):
+            code = run_linear(args)
+    finally:
+        sys.stderr.write(messages.getvalue().replace(str(out), shown))
     summary = read_summary(out, finished_only=False)
     if code != 0 or summary is None or summary.get("status") in INCOMPLETE:
         reason = (summary or {}).get("status_message")
