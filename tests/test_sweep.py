@@ -115,10 +115,11 @@ def test_an_out_that_cannot_be_a_sweep_directory_is_one_line(out, tmp_path):
 
 def test_an_unreachable_scheduler_is_one_line_and_keeps_the_sweep_directory(tmp_path):
     # README: a scheduler that cannot be reached in 30 s ends the command with one line, exit
-    # status 1, and the sweep directory (nothing run yet) is kept for a re-run
+    # status 1, and the sweep directory (nothing run yet) is kept for a re-run; with its
+    # progress bar on, as a user runs it, no bar line follows the message (a new-user pass)
     out = tmp_path / "sweep"
     proc = subprocess.run([sys.executable, "-m", "hmdem.sweep", "lenormand", "--log-m", "-5:2:2", "--log-ca", "-8:2:2",
-                           "--scheduler", "tcp://127.0.0.1:1", "--out", str(out), "--quiet"],
+                           "--scheduler", "tcp://127.0.0.1:1", "--out", str(out)],
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 1
     last = proc.stderr.strip().splitlines()[-1]
@@ -298,6 +299,9 @@ def test_an_interrupted_sweep_finishes_with_the_same_table(reference, packing, t
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert read_table(out / "sweep.csv") == read_table(reference[1] / "sweep.csv")
+    # each ran once: runs submitted but stopped before they came back are no attempt (a new-user pass)
+    runs = json.loads((out / "manifest.json").read_text())["runs"]
+    assert [r["attempts"] for r in runs.values()] == [1, 1, 1, 1]
 
 
 def test_run_point_takes_only_its_own_run_directory(packing, tmp_path):

@@ -90,22 +90,21 @@ def run_sweep(manifest: Manifest, packing: Path | None = None, workers: int | No
     ``runner(point, packing_bytes, packing_name) -> (summary, packed run directory)`` is the
     task (tests substitute one that crashes its worker)."""
     todo = manifest.todo()
-    bar = SweepProgress(manifest, progress)
     if not todo:
-        bar.close()
+        SweepProgress(manifest, progress).close()
         return manifest.counts()
     from distributed import as_completed
 
     packing_bytes = Path(packing).read_bytes() if packing else None
     packing_name = str(Path(packing).resolve()) if packing else None  # recorded: valid from anywhere
     client, cluster = start_client(workers, scheduler)
+    # after the client: a scheduler that cannot be reached is one line, with no bar after it
+    bar = SweepProgress(manifest, progress)
     try:
         futures = {}
         for point in todo:
-            manifest.started(point.run_id)
             key = f"hmdem-{point.run_id}-{manifest.runs[point.run_id]['attempts']}-{time.time_ns()}"
             futures[client.submit(runner, point, packing_bytes, packing_name, key=key, pure=False)] = point
-        manifest.save()
         for future in as_completed(futures):
             point = futures[future]
             try:

@@ -63,11 +63,11 @@ class Manifest:
         """Pending and failed runs (failed ones are retried)."""
         return [self.points[r] for r, rec in self.runs.items() if rec["status"] != DONE]
 
-    def started(self, run_id: str) -> None:
-        self.runs[run_id]["attempts"] += 1
-
     def finished(self, run_id: str, error: str | None) -> None:
-        self.runs[run_id].update(status=FAILED if error else DONE, error=error)
+        """A run came back, done or with ``error``: one attempt more (a run submitted but stopped
+        by Ctrl-C before it came back is not one; a new-user pass saw 4 for runs that ran once)."""
+        record = self.runs[run_id]
+        record.update(status=FAILED if error else DONE, error=error, attempts=record["attempts"] + 1)
         self.save()
 
     def counts(self) -> dict:
