@@ -147,7 +147,7 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
         np.savez_compressed(tmp / "state.npz", pressure=state.pressure, saturation=state.saturation,
                             invasion_time=state.invasion_time, t=state.t)
         stopped = stop_note(rec.status, "breakthrough" if sc.setup.two_phase else "t_max")
-        title = f"{sc.case.title}\nCa* = {sc.ca_star:.3g}, M = {sc.setup.fluids.viscosity_ratio:.3g}, t = {state.t:.4g} s, " \
+        title = f"{case_title(sc.case)}\nCa* = {sc.ca_star:.3g}, M = {sc.setup.fluids.viscosity_ratio:.3g}, t = {state.t:.4g} s, " \
                 f"{summary['regime']}, {dimension_note(summary['fractal_dimension'])}" + (f"\n{stopped.strip()}" if stopped else "")
         plot_pattern(tmp / "pattern.png", net, state.saturation, title, sc.packing_radii, overlay)
         marked = {"time": summary["early_peak_time_s"], "pressure": summary["early_peak_injection_pressure_pa"]}
@@ -161,6 +161,24 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
         if extra_files is not None:
             extra_files(tmp)
     return summary
+
+
+def case_title(case) -> str:
+    """The named case's title, saying which of its settings the command line changed: a vf run
+    at M = 1e-3 is no longer "air into oil", nor the paper's viscous fingering (a new-user pass)."""
+    from .cases import CASES
+
+    named = CASES.get(case.name)
+    if named is None:
+        return case.title
+    changed = [what for what, differs in (
+        ("M", case.fluids.viscosity_inv != named.fluids.viscosity_inv),
+        ("Ca*", case.ca_star != named.ca_star), ("the rate", case.rate != named.rate),
+        ("the mean aperture", case.mean_aperture != named.mean_aperture)) if differs]
+    if not changed:
+        return case.title
+    listed = changed[0] if len(changed) == 1 else f"{', '.join(changed[:-1])} and {changed[-1]}"
+    return f"{case.title}, with {listed} changed"
 
 
 def write_vtu(path: Path, net, state) -> None:

@@ -696,3 +696,18 @@ def test_threads_beyond_the_idle_cores_are_warned_of(monkeypatch, threads, load,
     assert (warning is not None) == warned
     if warned:
         assert f"--threads {threads}" in warning and "--threads 1" in warning
+
+
+@pytest.mark.parametrize("flags, title", [
+    ([], "Case 1 viscous fingering: air into oil"),
+    (["--viscosity-ratio", "1e-3", "--ca-star", "1e-5"], "Case 1 viscous fingering: air into oil, with M and Ca* changed"),
+    (["--rate", "1e-6", "--mean-aperture", "0.3e-3"],
+     "Case 1 viscous fingering: air into oil, with the rate and the mean aperture changed"),
+])
+def test_pictures_say_which_of_the_cases_settings_were_changed(flags, title):
+    # a new-user pass: vf at M = 1e-3, Ca* = 1e-5 was still titled "viscous fingering: air into
+    # oil" over a capillary-fingering pattern of a 1 mPa s invader
+    from hmdem.hele_shaw import build_parser, make_case
+    from hmdem.report import case_title
+
+    assert case_title(make_case(build_parser().parse_args(["linear", "--case", "vf", *flags]))) == title
