@@ -389,6 +389,24 @@ def test_yade_batch_runs_the_shipped_table_and_collect_aggregates_it(packing, tm
 
 
 @pytest.mark.yade
+def test_yade_script_says_when_it_takes_an_earlier_run(packing, tmp_path):
+    # a new-user pass: a point whose out held its finished run printed the usual result line,
+    # as if it had run (in 0 s)
+    (tmp_path / "p.table").write_text(f"description logM logCa seed packing out\n"
+                                      f"p 2 2 0 '{packing}' '{tmp_path / 'run'}'\n")
+    env = {**os.environ, "YADE_BATCH": f"{tmp_path / 'p.table'}:2"}  # as yade-batch starts a job
+    lines = []
+    for _ in range(2):
+        proc = subprocess.run(["yade", "-n", "-x", str(ROOT / "yade_scripts" / "hele_shaw_linear.py")],
+                              cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        lines.append(proc.stdout.strip().splitlines()[-1])
+    point = SweepPoint(2.0, 2.0, 0).run_id
+    assert lines[0].startswith(f"{point}: breakthrough, ")
+    assert lines[1] == lines[0].replace(f"{point}: ", f"{point}: taken from its earlier run: ", 1)
+
+
+@pytest.mark.yade
 def test_yade_script_refused_packing_is_one_line_exit_2(tmp_path):
     # a table row whose packing the linear run refuses (the Huang sample's 34 um grains under
     # 0.42 mm apertures): yade-batch logs one line and status 2, not a traceback

@@ -34,7 +34,7 @@ from yade.params import table  # noqa: E402
 
 from hmdem.sweep.grid import LOG_CA_STAR_RANGE, LOG_M_RANGE, SweepPoint  # noqa: E402
 from hmdem.report import dimension_note  # noqa: E402
-from hmdem.sweep.runner import NotThisPoint, RunFailed, run_point  # noqa: E402
+from hmdem.sweep.runner import NotThisPoint, RunFailed, read_summary, run_point  # noqa: E402
 
 for column, (low, high) in (("logM", LOG_M_RANGE), ("logCa", LOG_CA_STAR_RANGE)):  # the sweep's own bounds
     value = getattr(table, column)
@@ -44,6 +44,7 @@ for column, (low, high) in (("logM", LOG_M_RANGE), ("logCa", LOG_CA_STAR_RANGE))
         sys.exit(2)
 point = SweepPoint(float(table.logM), float(table.logCa), int(table.seed))
 out = Path(table.out or f"runs/lenormand-batch/{point.run_id}")
+earlier = read_summary(out)  # a finished run there is taken as the point's result (if it is this point's)
 try:
     with sigterm_as_interrupt():  # a batch system's SIGTERM writes the run as Ctrl-C does
         summary = run_point(point, out, table.packing or None)
@@ -53,5 +54,6 @@ except RunFailed as exc:  # one line and the run's own exit status (yade-batch l
 except (InputError, NotThisPoint) as exc:  # a packing the run refuses, an out of another run: one line, exit 2
     print(f"yade_scripts/hele_shaw_linear.py: {exc}", file=sys.stderr)
     sys.exit(2)
-print(f"{point.run_id}: {summary['status']}, {summary['regime']}, {dimension_note(summary['fractal_dimension'])}; "
+print(f"{point.run_id}: {'taken from its earlier run: ' if earlier is not None else ''}{summary['status']}, "
+      f"{summary['regime']}, {dimension_note(summary['fractal_dimension'])}; "
       f"run directory {out}")
