@@ -36,7 +36,7 @@ EXPLICIT_DEFAULT_MAX_STEPS = 100_000
 
 def power_of_ten_within(log_range: tuple[float, float]):
     """argparse type: a number in [10^a, 10^b], where the runs were measured to reach
-    breakthrough (the sweep's axes, decisions #77, #78): M = 1e300 was taken and ran for ever
+    breakthrough (the sweep's axes, decisions #77, #78, #90): M = 1e300 was taken and ran for ever
     with nothing invaded, its pipes' conductances underflowing (a new-user pass)."""
     low, high = (10.0 ** e for e in log_range)
     return number_in(f"a number in [1e{log_range[0]:g}, 1e{log_range[1]:g}] (where runs were measured to reach "
@@ -304,7 +304,8 @@ def run_linear(args) -> int:
               f"the largest errors are {darcy.inflow_pressure_error:.1%} (p_in), {darcy.outflow_rate_error:.1%} (q_out), "
               f"{darcy.profile_error:.1%} (final profile): {'within' if darcy.within_u16 else 'outside'} U16's 5 %")
     print(f"run directory: {out}")
-    return finish(rec, summary, out)
+    # a sweep's worker runs in a scratch copy: its warnings name the run directory the sweep keeps
+    return finish(rec, summary, getattr(args, "shown_out", None) or out)
 
 
 def read_darcy_run(sc, rec, state):

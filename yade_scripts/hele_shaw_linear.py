@@ -44,7 +44,10 @@ for column, (low, high) in (("logM", LOG_M_RANGE), ("logCa", LOG_CA_STAR_RANGE))
         sys.exit(2)
 point = SweepPoint(float(table.logM), float(table.logCa), int(table.seed))
 out = Path(table.out or f"runs/lenormand-batch/{point.run_id}")
-earlier = read_summary(out)  # a finished run there is taken as the point's result (if it is this point's)
+try:  # a finished run there is taken as the point's result (run_point checks it is this point's)
+    earlier = read_summary(out)
+except (OSError, ValueError):  # not a readable run: run_point refuses it in one line
+    earlier = None
 try:
     with sigterm_as_interrupt():  # a batch system's SIGTERM writes the run as Ctrl-C does
         summary = run_point(point, out, table.packing or None)

@@ -165,6 +165,7 @@ def run_collect(args) -> int:
                          else f"dir: no such directory {str(args.dir)!r}")
     if (args.dir / "summary.json").is_file():  # its tables would land among one run's files
         raise InputError(f"dir: {str(args.dir)!r} is a run directory; give the directory that holds the runs")
+    from .manifest import planned_runs
     from .table import collect, other_run_directories
 
     rows = collect(args.dir)
@@ -177,7 +178,7 @@ def run_collect(args) -> int:
                          + skipped)
     if others:
         print(f"{PROG}: note: {len(rows)} Lenormand runs collected" + skipped, file=sys.stderr)
-    write_tables(args.dir, rows)
+    write_tables(args.dir, rows, planned_runs(args.dir))  # a sweep directory's points not run are marked
     print(f"{len(rows)} run{'' if len(rows) == 1 else 's'} -> {args.dir / 'sweep.csv'}, {args.dir / 'phase_diagram.png'}")
     return 0
 

@@ -87,7 +87,7 @@ def run_sweep(manifest: Manifest, packing: Path | None = None, workers: int | No
               scheduler: str | None = None, progress: bool = True, runner=run_packed) -> dict:
     """Run every pending or failed point of ``manifest``; returns the final counts.
 
-    ``runner(point, packing_bytes, packing_name) -> (summary, packed run directory)`` is the
+    ``runner(point, packing_bytes, packing_name, shown_as) -> (summary, packed run directory)`` is the
     task (tests substitute one that crashes its worker)."""
     todo = manifest.todo()
     if not todo:
@@ -104,7 +104,8 @@ def run_sweep(manifest: Manifest, packing: Path | None = None, workers: int | No
         futures = {}
         for point in todo:
             key = f"hmdem-{point.run_id}-{manifest.runs[point.run_id]['attempts']}-{time.time_ns()}"
-            futures[client.submit(runner, point, packing_bytes, packing_name, key=key, pure=False)] = point
+            shown_as = str(manifest.run_dir(point.run_id))  # where the client keeps it: its warnings name this
+            futures[client.submit(runner, point, packing_bytes, packing_name, shown_as, key=key, pure=False)] = point
         for future in as_completed(futures):
             point = futures[future]
             try:

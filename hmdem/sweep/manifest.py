@@ -18,6 +18,16 @@ from .runner import read_summary
 PENDING, DONE, FAILED = "pending", "done", "failed"
 
 
+def planned_runs(root: Path) -> list[tuple[float, float]] | None:
+    """The runs a sweep directory's manifest plans, as (log M, log Ca*), one per seed; None
+    without a readable manifest (a yade-batch directory), for ``collect``'s diagram."""
+    try:
+        runs = json.loads((Path(root) / "manifest.json").read_text())["runs"].values()
+        return [(float(r["log_m"]), float(r["log_ca_star"])) for r in runs]
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return None
+
+
 class Manifest:
     """``manifest.json`` of a sweep directory: the grid (``spec``) and one record per run."""
 
@@ -53,8 +63,8 @@ class Manifest:
         """Done exactly when the run directory holds a finished run."""
         for run_id, record in self.runs.items():
             finished = read_summary(self.run_dir(run_id)) is not None
-            if finished:
-                record.update(status=DONE, error=None)
+            if finished:  # at least the attempt that wrote it (Ctrl-C may land before it was counted)
+                record.update(status=DONE, error=None, attempts=max(record["attempts"], 1))
             elif record["status"] == DONE:
                 record["status"] = PENDING
         self.save()

@@ -4,9 +4,11 @@ only the client ever writes into the sweep directory."""
 
 from __future__ import annotations
 
+import glob
 import io
 import os
 import shutil
+import socket
 import tarfile
 import tempfile
 from pathlib import Path
@@ -44,15 +46,29 @@ def unpack_directory(data: bytes, final: Path) -> None:
         raise
 
 
-SCRATCH_PREFIX = "hmdem-sweep-"  # then the worker's process id
+SCRATCH_PREFIX = "hmdem-sweep-"  # then the host, the worker's process id and tempfile's letters
+
+
+def scratch_prefix(pid: int | None = None) -> str:
+    """The scratch directories' prefix for this host (no '-' in it, so that the process id after
+    it reads back unambiguously) and ``pid`` (default this process)."""
+    host = socket.gethostname().replace("-", "_")
+    return f"{SCRATCH_PREFIX}{host}-{os.getpid() if pid is None else pid}-"
 
 
 def remove_orphaned_scratch(root: Path | None = None) -> None:
-    """Remove the scratch directories of workers no longer running: a sweep stopped by Ctrl-C
-    ends its workers mid-run, before they clean up (a new-user pass found two per stop)."""
-    for scratch in Path(root or tempfile.gettempdir()).glob(f"{SCRATCH_PREFIX}*-*"):
-        pid = scratch.name[len(SCRATCH_PREFIX):].split("-")[0]
-        if pid.isdigit() and not process_running(int(pid)):
+    """Remove this user's scratch directories of workers on this host no longer running: a sweep
+    stopped by Ctrl-C ends its workers mid-run, before they clean up (a new-user pass found two
+    per stop). Process ids mean nothing across hosts or containers that share the directory, so
+    other hosts' directories are left alone."""
+    prefix = scratch_prefix(0)[:-2]  # this host's, up to its process ids
+    for scratch in Path(root or tempfile.gettempdir()).glob(f"{glob.escape(prefix)}*-*"):
+        pid = scratch.name[len(prefix):].split("-")[0]
+        try:
+            mine = scratch.lstat().st_uid == os.getuid()
+        except OSError:
+            continue
+        if mine and pid.isdigit() and not process_running(int(pid)):
             shutil.rmtree(scratch, ignore_errors=True)
 
 
@@ -66,17 +82,20 @@ def process_running(pid: int) -> bool:
     return True
 
 
-def run_packed(point: SweepPoint, packing: bytes | None = None, packing_name: str | None = None) -> tuple[dict, bytes]:
+def run_packed(point: SweepPoint, packing: bytes | None = None, packing_name: str | None = None,
+               shown_as: str | None = None) -> tuple[dict, bytes]:
     """Run ``point`` in a scratch directory (``packing``: the bytes of a packing .npz, None for
-    the shipped one, ``packing_name`` its path on the client); its summary and the packed run
-    directory, whose config.toml records the command as run from the sweep directory."""
+    the shipped one, ``packing_name`` its path on the client, ``shown_as`` the run directory on
+    the client, which its warnings name); its summary and the packed run directory, whose
+    config.toml records the command as run from the sweep directory."""
     remove_orphaned_scratch()
-    with tempfile.TemporaryDirectory(prefix=f"{SCRATCH_PREFIX}{os.getpid()}-") as scratch:
+    with tempfile.TemporaryDirectory(prefix=scratch_prefix()) as scratch:
         packing_path = None
         if packing is not None:
             packing_path = Path(scratch) / "packing.npz"
             packing_path.write_bytes(packing)
         out = Path(scratch) / point.run_id
         recorded = cli_arguments(point, Path("runs") / point.run_id, packing_name)
-        summary = run_point(point, out, packing_path, recorded, recorded_packing=packing_name)
+        summary = run_point(point, out, packing_path, recorded, recorded_packing=packing_name,
+                            shown_as=shown_as or str(Path("runs") / point.run_id))
         return summary, pack_directory(out)

@@ -72,16 +72,20 @@ def plot_phase_diagram(path: Path, rows: list[dict], crossover: float | None = N
         ms = np.array(sorted({k[0] for k in points} | {k[0] for k in not_run}))
         cs = np.array(sorted({k[1] for k in points} | {k[1] for k in not_run}))
         m_edges, c_edges = cell_edges(ms), cell_edges(cs)
-        for m, c in not_run:
+
+        def cell(m, c, **style):
+            """The grid cell of (m, c) as a rectangle; its corners (i, j) in the edge arrays."""
             i, j = np.searchsorted(ms, m), np.searchsorted(cs, c)
             ax.add_patch(Rectangle((m_edges[i], c_edges[j]), m_edges[i + 1] - m_edges[i], c_edges[j + 1] - c_edges[j],
-                                   facecolor="white", edgecolor="lightgrey", hatch=".."))
+                                   **style))
+            return i, j
+
+        for m, c in not_run:
+            cell(m, c, facecolor="white", edgecolor="lightgrey", hatch="..")
             ax.text(m, c, "not run", ha="center", va="center", fontsize=8, color="grey", zorder=3)
         for (m, c), (regime, d_f, n, failed, compression) in points.items():
-            i, j = np.searchsorted(ms, m), np.searchsorted(cs, c)
-            ax.add_patch(Rectangle((m_edges[i], c_edges[j]), m_edges[i + 1] - m_edges[i], c_edges[j + 1] - c_edges[j],
-                                   facecolor=REGIME_COLOURS.get(regime, OTHER_COLOUR), edgecolor="white",
-                                   hatch="//" if regime == "failed" else None))
+            i, j = cell(m, c, facecolor=REGIME_COLOURS.get(regime, OTHER_COLOUR), edgecolor="white",
+                        hatch="//" if regime == "failed" else None)
             label = "failed" if regime == "failed" else f"D$_f$ {d_f:.2f}" if math.isfinite(d_f) else "D$_f$ n/a"
             if failed and regime != "failed":
                 label += f"\n{failed}/{n} failed"

@@ -12,9 +12,8 @@ import io
 import json
 import shlex
 import shutil
-import sys
 import tomllib
-from contextlib import redirect_stderr, redirect_stdout
+from contextlib import redirect_stdout
 from pathlib import Path
 
 from .grid import SweepPoint
@@ -52,11 +51,6 @@ class RunFailed(RuntimeError):
 
 class NotThisPoint(ValueError):
     """``out`` exists and is not a run directory of the point asked for."""
-
-
-def point_out(argv: list[str]) -> str:
-    """The --out of a run's arguments."""
-    return argv[argv.index("--out") + 1]
 
 
 def point_arguments(argv: list[str]) -> tuple[list[str], str | None]:
@@ -110,12 +104,13 @@ def check_out_is_this_point(out: Path, point: SweepPoint, packing: str | None) -
 
 
 def run_point(point: SweepPoint, out: Path, packing: str | None = None, recorded_as: list[str] | None = None,
-              recorded_packing: str | None = None) -> dict:
+              recorded_packing: str | None = None, shown_as: str | None = None) -> dict:
     """Run one point into ``out`` (written atomically by the run itself); its summary.
 
     ``recorded_as``: the command line config.toml records (default: the one run here);
     ``recorded_packing``: the packing path its [packing] names (default: ``packing``'s), for a
-    worker that reads a scratch copy. An existing ``out`` must be a run of this point
+    worker that reads a scratch copy; ``shown_as``: the run directory its warnings name (default
+    ``out``), for a worker's scratch copy. An existing ``out`` must be a run of this point
     (:func:`check_out_is_this_point`): a finished one is its result, one left by an interrupted
     or diverged run is replaced. Raises on any failure; the sweep records the error text."""
     from ..cli import InputError
@@ -134,15 +129,10 @@ def run_point(point: SweepPoint, out: Path, packing: str | None = None, recorded
     args = build_parser().parse_args(argv)
     args.argv = recorded_as or argv  # config.toml's command (hele_shaw.recorded_argv)
     args.packing_recorded = recorded_packing
-    shown = point_out(args.argv)
-    messages = io.StringIO()
-    try:
-        # the run's two result lines are dropped (the sweep reports instead); its warnings name the
-        # run directory as recorded, not a worker's scratch copy (a new-user pass found /tmp/... paths)
-        with redirect_stdout(io.StringIO()), redirect_stderr(messages):
-            code = run_linear(args)
-    finally:
-        sys.stderr.write(messages.getvalue().replace(str(out), shown))
+    # its warnings name the directory the sweep keeps, not a worker's scratch copy (a new-user pass)
+    args.shown_out = shown_as
+    with redirect_stdout(io.StringIO()):  # the run's two result lines; the sweep reports instead
+        code = run_linear(args)
     summary = read_summary(out, finished_only=False)
     if code != 0 or summary is None or summary.get("status") in INCOMPLETE:
         reason = (summary or {}).get("status_message")
