@@ -62,7 +62,8 @@ def build_parser() -> argparse.ArgumentParser:
                            f"[{LOG_CA_STAR_RANGE[0]:g}, {LOG_CA_STAR_RANGE[1]:g}] (default {DEFAULT_LOG_CA})")
     len_.add_argument("--seeds", type=positive_int, default=1, help="aperture seeds per point, 0..K-1 (default 1)")
     len_.add_argument("--workers", type=positive_int,
-                      help="worker processes of the embedded Dask cluster (default: one per core)")
+                      help="worker processes of the embedded Dask cluster (default: one per core; more run on "
+                           "the cores, with a warning)")
     len_.add_argument("--scheduler", help="address of an existing Dask scheduler, e.g. tcp://host:8786")
     len_.add_argument("--packing", type=Path, help="packing .npz (default: the shipped 65 mm packing)")
     len_.add_argument("--out", type=Path, help="sweep directory (default runs/lenormand-<time>); an existing "
@@ -74,10 +75,11 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def write_tables(root: Path, rows: list[dict] | None = None, planned=None) -> list[dict]:
-    """sweep.csv and phase_diagram.png of ``root`` (``rows``: already collected; ``planned``: a
-    sweep's runs as (log M, log Ca*)); the rows."""
+def write_tables(root: Path, rows: list[dict] | None = None) -> list[dict]:
+    """sweep.csv and phase_diagram.png of ``root`` (``rows``: already collected); the rows. A
+    sweep directory's diagram marks the points its manifest plans that have not run."""
     from .boundaries import capillary_crossover
+    from .manifest import planned_runs
     from .phase_diagram import plot_phase_diagram
     from .table import collect, write_csv
 
@@ -86,7 +88,7 @@ def write_tables(root: Path, rows: list[dict] | None = None, planned=None) -> li
     finished = [root / r["run"] for r in rows if r["status"] != "failed"]
     # the crossover lines are drawn for the network of the first finished run (seed 0 first)
     crossover = capillary_crossover(finished[0]) if finished else None
-    plot_phase_diagram(root / "phase_diagram.png", rows, crossover, planned)
+    plot_phase_diagram(root / "phase_diagram.png", rows, crossover, planned_runs(root))
     return rows
 
 
@@ -150,7 +152,7 @@ def run_lenormand(args) -> int:
         interrupted = True
         manifest.reconcile()
         counts = manifest.counts()
-    rows = write_tables(out, planned=[(p.log_m, p.log_ca_star) for p in points])
+    rows = write_tables(out)
     print(f"{counts[DONE]} done, {counts[FAILED]} failed, {len(points) - counts[DONE] - counts[FAILED]} not run; "
           f"{len(rows)} rows in {out / 'sweep.csv'}")
     if interrupted:
@@ -165,7 +167,6 @@ def run_collect(args) -> int:
                          else f"dir: no such directory {str(args.dir)!r}")
     if (args.dir / "summary.json").is_file():  # its tables would land among one run's files
         raise InputError(f"dir: {str(args.dir)!r} is a run directory; give the directory that holds the runs")
-    from .manifest import planned_runs
     from .table import collect, other_run_directories
 
     rows = collect(args.dir)
@@ -178,7 +179,7 @@ def run_collect(args) -> int:
                          + skipped)
     if others:
         print(f"{PROG}: note: {len(rows)} Lenormand runs collected" + skipped, file=sys.stderr)
-    write_tables(args.dir, rows, planned_runs(args.dir))  # a sweep directory's points not run are marked
+    write_tables(args.dir, rows)
     print(f"{len(rows)} run{'' if len(rows) == 1 else 's'} -> {args.dir / 'sweep.csv'}, {args.dir / 'phase_diagram.png'}")
     return 0
 

@@ -49,11 +49,15 @@ def unpack_directory(data: bytes, final: Path) -> None:
 SCRATCH_PREFIX = "hmdem-sweep-"  # then the host, the worker's process id and tempfile's letters
 
 
+def host_scratch_prefix() -> str:
+    """The scratch directories' prefix on this host (no '-' in the host's name, so that the
+    process id after it reads back unambiguously)."""
+    return f"{SCRATCH_PREFIX}{socket.gethostname().replace('-', '_')}-"
+
+
 def scratch_prefix(pid: int | None = None) -> str:
-    """The scratch directories' prefix for this host (no '-' in it, so that the process id after
-    it reads back unambiguously) and ``pid`` (default this process)."""
-    host = socket.gethostname().replace("-", "_")
-    return f"{SCRATCH_PREFIX}{host}-{os.getpid() if pid is None else pid}-"
+    """The prefix of the scratch directories of ``pid`` (default this process) on this host."""
+    return f"{host_scratch_prefix()}{os.getpid() if pid is None else pid}-"
 
 
 def remove_orphaned_scratch(root: Path | None = None) -> None:
@@ -61,7 +65,7 @@ def remove_orphaned_scratch(root: Path | None = None) -> None:
     stopped by Ctrl-C ends its workers mid-run, before they clean up (a new-user pass found two
     per stop). Process ids mean nothing across hosts or containers that share the directory, so
     other hosts' directories are left alone."""
-    prefix = scratch_prefix(0)[:-2]  # this host's, up to its process ids
+    prefix = host_scratch_prefix()
     for scratch in Path(root or tempfile.gettempdir()).glob(f"{glob.escape(prefix)}*-*"):
         pid = scratch.name[len(prefix):].split("-")[0]
         try:

@@ -74,7 +74,7 @@ def plot_phase_diagram(path: Path, rows: list[dict], crossover: float | None = N
         m_edges, c_edges = cell_edges(ms), cell_edges(cs)
 
         def cell(m, c, **style):
-            """The grid cell of (m, c) as a rectangle; its corners (i, j) in the edge arrays."""
+            """Draw the grid cell of (m, c); its indices (i, j) in the edge arrays."""
             i, j = np.searchsorted(ms, m), np.searchsorted(cs, c)
             ax.add_patch(Rectangle((m_edges[i], c_edges[j]), m_edges[i + 1] - m_edges[i], c_edges[j + 1] - c_edges[j],
                                    **style))

@@ -112,7 +112,8 @@ def build_parser() -> OneLineParser:
                            help="surfaces per H (default 2, at most 1000)")
             p.add_argument("--workers", type=int_at_least(1), default=available_cores(),
                            help="channels run side by side in worker processes, one core each (default: the "
-                                "machine's %(default)s cores, and at most those; the numbers do not depend on it)")
+                                "machine's %(default)s cores; more run on those, with a warning; the numbers do "
+                                "not depend on it)")
         p.add_argument("--out", type=Path, help="run directory (must not exist; default runs/lga-<case>-<time>-<pid>)")
         p.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
