@@ -27,6 +27,7 @@ from pathlib import Path
 from . import __version__
 from .cli import (OneLineParser, add_contact_arguments, contact_gap_fraction, dispatch, grain_count, interrupted_status,
                   new_run_directory, non_negative_int, number_in, positive_number, read_compacted_packing, stop_note)
+from .dem.biaxial import FIT_STRAIN
 from .network.contact_graph import NEAR_CONTACT_GAP
 from .rundir import atomic_run_directory
 from .rundir import write_json as write_strict_json
@@ -38,7 +39,9 @@ class _Parser(OneLineParser):
     command = PROG
 
 
-strain_value = number_in("an axial strain in (0, 0.5)", lambda v: 0 < v < 0.5)
+# the test ends past the window that E and nu are fitted over (an interrupted one may not)
+final_strain = number_in(f"an axial strain in ({FIT_STRAIN[1]:g}, 0.5), past the E and nu fit window",
+                         lambda v: FIT_STRAIN[1] < v < 0.5)
 
 
 def stress_list(text: str) -> list[float]:
@@ -67,7 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
     bi.add_argument("--sigma3", type=positive_number, default=SIGMA3, help="confining stress [Pa] (default 1e5)")
     bi.add_argument("--strain-rate", type=positive_number, default=STRAIN_RATE,
                     help=f"axial strain rate [1/s] (default {STRAIN_RATE:g})")
-    bi.add_argument("--max-strain", type=strain_value, default=0.025, help="final axial strain (default 0.025)")
+    bi.add_argument("--max-strain", type=final_strain, default=0.025, help="final axial strain (default 0.025)")
     bi.add_argument("--seed", type=non_negative_int, default=0, help="packing seed (default 0)")
     add_contact_arguments(bi)
     bi.add_argument("--rate-check", action="store_true",
@@ -144,12 +147,14 @@ def plot_biaxial(path: Path, res, status: str) -> None:
     a1.plot(ea, res.deviator / 1e3, label=r"$\sigma_1-\sigma_3$", lw=0.8)
     lo, hi = res.fit_strain
     a1.axvspan(100 * lo, 100 * hi, color="0.85", zorder=0, label="E, nu fit range")
-    x = ea[ea <= 100 * 4 * hi] / 100
-    a1.plot(100 * x, res.young_modulus * x / 1e3, "k--", lw=0.8,
-            label=f"E = {res.young_modulus / 1e6:.1f} MPa (paper 65.4)")
-    a1.axhline(309.6, color="r", lw=0.6, ls=":", label=r"paper peak $\sigma_1$ 309.6 kPa")
-    a1.plot([100 * res.strain_at_peak], [res.peak_sigma1 / 1e3], "ro", ms=4,
-            label=f"peak {res.peak_sigma1 / 1e3:.1f} kPa, phi = {res.friction_angle:.1f} deg")
+    if math.isfinite(res.young_modulus):  # an interrupted curve may stop short of the fit window
+        x = ea[ea <= 100 * 4 * hi] / 100
+        a1.plot(100 * x, res.young_modulus * x / 1e3, "k--", lw=0.8,
+                label=f"E = {res.young_modulus / 1e6:.1f} MPa (paper 65.4)")
+    a1.axhline(309.6, color="r", lw=0.6, ls=":", label=r"paper peak $\sigma_1$ 309.6 kPa (phi 30.8 deg)")
+    if math.isfinite(res.peak_sigma1):
+        a1.plot([100 * res.strain_at_peak], [res.peak_sigma1 / 1e3], "ro", ms=4,
+                label=f"peak {res.peak_sigma1 / 1e3:.1f} kPa, phi = {res.friction_angle:.1f} deg")
     a1.set_xlabel("axial strain [%]")
     a1.set_ylabel("stress [kPa]")
     a1.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)  # below: no curve hidden
@@ -157,7 +162,8 @@ def plot_biaxial(path: Path, res, status: str) -> None:
                  f"{stop_note(status, 'finished')}", fontsize=9)
     a2.plot(ea, 100 * res.strain_volumetric, label="volumetric (area) strain")
     a2.plot(ea, 100 * res.strain_lateral, label="lateral strain")
-    a2.axvspan(100 * lo, 100 * hi, color="0.85", zorder=0, label=f"nu fit: nu = {res.poisson_ratio:.3f} (paper 0.102)")
+    a2.axvspan(100 * lo, 100 * hi, color="0.85", zorder=0, label=f"nu fit: nu = {res.poisson_ratio:.3f} (paper 0.102)" if math.isfinite(res.poisson_ratio)
+               else "nu fit window (not reached)")
     a2.axhline(0, color="k", lw=0.5)
     a2.set_xlabel("axial strain [%]")
     a2.set_ylabel("strain [%] (compression > 0)")
@@ -165,6 +171,14 @@ def plot_biaxial(path: Path, res, status: str) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def against(name: str, value: float, form: str, unit: str, error: float, target: float) -> str:
+    """'name = value unit (error vs target)', or 'name = n/a' for a value an interrupted curve
+    did not reach (NaN)."""
+    if not math.isfinite(value):
+        return f"{name} = n/a"
+    return f"{name} = {value:{form}}{unit} ({error:+.1%} vs {target:g})"
 
 
 def run_biaxial_command(args, argv) -> int:
@@ -226,10 +240,10 @@ def run_biaxial_command(args, argv) -> int:
               f"{summary['rate_check']['max_axial_strain']:.3%}; the full-rate test is complete in {out}, without "
               f"the check's comparison", file=sys.stderr)
     err = summary["relative_errors"]
-    print(f"E = {res.young_modulus / 1e6:.2f} MPa ({err['young_modulus_pa']:+.1%} vs 65.4), "
-          f"nu = {res.poisson_ratio:.3f} ({err['poisson_ratio']:+.1%} vs 0.102), "
-          f"peak sigma1 = {res.peak_sigma1 / 1e3:.1f} kPa ({err['peak_sigma1_pa']:+.1%} vs 309.6), "
-          f"phi = {res.friction_angle:.2f} deg ({err['friction_angle_deg']:+.1%} vs 30.8); "
+    print(f"{against('E', res.young_modulus / 1e6, '.2f', ' MPa', err['young_modulus_pa'], 65.4)}, "
+          f"{against('nu', res.poisson_ratio, '.3f', '', err['poisson_ratio'], 0.102)}, "
+          f"{against('peak sigma1', res.peak_sigma1 / 1e3, '.1f', ' kPa', err['peak_sigma1_pa'], 309.6)}, "
+          f"{against('phi', res.friction_angle, '.2f', ' deg', err['friction_angle_deg'], 30.8)}; "
           f"max |sigma3 - target| = {res.max_sigma3_deviation:.2%}")
     if "peak_relative_change" in summary.get("rate_check", {}):
         print(f"half strain rate: peak sigma1 changes by {summary['rate_check']['peak_relative_change']:+.2%}")

@@ -35,6 +35,9 @@ class OneLineParser(argparse.ArgumentParser):
     command = "hmdem"
 
     def __init__(self, *args, **kwargs):
+        # no prefixes of long options: --sigma would be taken for calibrate's --sigma3, where radial
+        # has a --sigma of its own, and a prefix that is unique today may not be after a new option
+        kwargs.setdefault("allow_abbrev", False)
         super().__init__(*args, **kwargs)
         # argparse reads "-1e-4" as an option ("expected one argument"); as a number, it reaches
         # the option's own check, which says what is allowed

@@ -155,6 +155,8 @@ def test_elastic_constants_use_compression_positive_strains():
     (["biaxial", "--n", "1.5"], "--n"),
     (["biaxial", "--seed", "-1"], "--seed"),
     (["biaxial", "--max-strain", "0.9"], "--max-strain"),
+    # a new-user pass: a test ended inside the fit window reported E and nu from part of it
+    (["biaxial", "--max-strain", "0.0005"], "--max-strain"),
     (["biaxial", "--contact-stiffness", "0"], "--contact-stiffness"),
     (["biaxial", "--friction", "nan"], "--friction"),
     (["biaxial", "--stiffness-ratio", "-1"], "--stiffness-ratio"),
@@ -195,6 +197,11 @@ def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, monkeypatch, cap
     (["--seed", "-1"], "--seed"),
     (["--stress", "1e30"], "--stress"),  # see the calibrate test's --sigma3 3e6
     (["--stress", "2e6", "--contact-stiffness", "5e7"], "--stress"),
+    # a new-user pass: these ended in tracebacks (the shrunk discs did not fit the box, or the
+    # box was narrower than a disc) or ran the whole cycle budget (a 10 m box)
+    (["--n", "5000", "--size", "1.25e-3"], "--size"),
+    (["--size", "1e-6"], "--size"),
+    (["--size", "10"], "--size"),
 ])
 def test_compaction_bad_input_is_one_line_exit_2_nothing_written(tmp_path, monkeypatch, capsys, args, flag):
     from hmdem.dem.compaction import main as compaction_main
@@ -291,6 +298,23 @@ def test_interrupted_biaxial_writes_the_curve_so_far(tmp_path, monkeypatch, caps
     assert s["young_modulus_pa"] == pytest.approx(4.9e7, rel=1e-9) and s["poisson_ratio"] == pytest.approx(0.2)
     assert s["max_axial_strain"] == pytest.approx(0.004)
     assert len((out / "timeseries.csv").read_text().splitlines()) == 42
+
+
+def test_a_curve_stopped_inside_the_fit_window_gives_no_moduli(tmp_path, monkeypatch, capsys):
+    # a new-user pass: stopped at 0.05 % axial strain (the fit window ends at 0.1 %), the console
+    # printed "E = nan MPa (+nan% vs 65.4)" and summary.json kept a secant modulus of the curve so far
+    import hmdem.dem.biaxial as biaxial
+
+    monkeypatch.setattr(biaxial, "run_biaxial", lambda *args, **kwargs: _loading(0.0005, "interrupted"))
+    out = tmp_path / "bi"
+    assert main(["biaxial", "--out", str(out), "--quiet"]) == 130
+    printed = capsys.readouterr().out
+    assert "E = n/a, nu = n/a" in printed and "nan" not in printed
+    s = json.loads((out / "summary.json").read_text())
+    assert s["young_modulus_pa"] is None and s["poisson_ratio"] is None and s["young_modulus_secant50_pa"] is None
+    # the curve so far still has its largest sigma1, the 5-sample mean of its last samples:
+    # q = 5e7 e - 1e9 e^2 at e = 1e-4 ... 5e-4 gives 4,990 ... 24,750 Pa, mean 14,890
+    assert s["peak_sigma1_pa"] == pytest.approx(1e5 + 14_890, rel=1e-9)
 
 
 def test_interrupted_rate_check_keeps_the_full_rate_test(tmp_path, monkeypatch, capsys):

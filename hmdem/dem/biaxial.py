@@ -32,7 +32,7 @@ from ..calibration import mohr_coulomb_friction_angle
 from ..network.packing import CONTACT_STIFFNESS, GRAIN_DENSITY, GRAIN_FRICTION, DiscPacking
 from ..yade_env import import_yade
 from .assembly import run_cycles
-from .compaction import WALLS, compact_sample
+from .compaction import WALLS, compact_sample, nominal_side
 from .discs import add_discs, disc_engines
 
 SIGMA3 = 0.1e6  # confining stress of the calibration [Pa]
@@ -79,11 +79,12 @@ class BiaxialResult:
 
     def derive_constants(self) -> None:
         """E and nu (:func:`elastic_constants`), the peak, phi and the sigma3 deviation from the
-        curve. An interrupted curve gives those it reaches: E and nu once it has passed
-        ``fit_strain``, a peak (of the curve so far) once it has 5 samples; the rest stay NaN."""
+        curve. A curve gives those it reaches: E and nu once it has passed ``fit_strain`` (the
+        command line ends a test past it; an interrupted one may stop short), a peak (of the
+        curve so far) once it has 5 samples; the rest stay NaN."""
         if len(self.sigma1) == 0:
             return
-        if self.status == "finished" or self.strain_axial[-1] > self.fit_strain[1]:
+        if self.passed_fit_window:
             self.young_modulus, self.poisson_ratio = elastic_constants(self.strain_axial, self.strain_lateral,
                                                                        self.deviator, self.fit_strain)
         if len(self.sigma1) >= 5:
@@ -96,10 +97,15 @@ class BiaxialResult:
     def deviator(self) -> np.ndarray:
         return self.sigma1 - self.sigma3
 
+    @property
+    def passed_fit_window(self) -> bool:
+        return len(self.strain_axial) > 0 and self.strain_axial[-1] > self.fit_strain[1]
+
     def secant_modulus_50(self) -> float:
-        """E50: secant of q at half its (smoothed) peak, for comparison with the fitted E."""
+        """E50: secant of q at half its (smoothed) peak, for comparison with the fitted E; NaN,
+        as E is, for a curve that stopped inside the fit window (its "peak" is its last point)."""
         q = self.deviator
-        if len(q) < 5:
+        if len(q) < 5 or not self.passed_fit_window:
             return float("nan")
         half = 0.5 * np.convolve(q, np.ones(5) / 5, mode="valid").max()
         k = int(np.argmax(q >= half))
@@ -303,7 +309,7 @@ def run_biaxial(n: int = 1395, sigma3: float = SIGMA3, strain_rate: float = STRA
                 packing: DiscPacking | None = None, progress=None, compaction_progress=None) -> BiaxialResult:
     """The full calibration test: frictionless isotropic compaction of ``n`` discs to ``sigma3``
     (Huang sample parameters by default), then :func:`load_biaxial`. ``size`` is the nominal box
-    side (default: the Huang 1.25 mm scaled by sqrt(n / 1395)); a given ``packing`` (compacted
+    side (default :func:`~hmdem.dem.compaction.nominal_side`); a given ``packing`` (compacted
     to ``sigma3`` between walls at 0, W, 0, H) skips the compaction. ``k_n`` is the compaction's
     contact stiffness; the loading uses the packing's (so a given packing keeps its own).
     ``friction`` and ``ks_over_kn`` are the loading's (compaction is frictionless). ``compaction_progress`` is
@@ -312,7 +318,7 @@ def run_biaxial(n: int = 1395, sigma3: float = SIGMA3, strain_rate: float = STRA
     t0 = time.perf_counter()
     if packing is None:
         if size is None:
-            size = 1.25e-3 * np.sqrt(n / 1395.0)
+            size = nominal_side(n)
         packing = compact_sample(n, size, r_min, r_max, stress=sigma3, seed=seed, k_n=k_n, density=density,
                                  progress=compaction_progress)
     compaction_seconds = time.perf_counter() - t0

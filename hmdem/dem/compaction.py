@@ -29,6 +29,29 @@ R_MIN, R_MAX = 13.0e-6, 21.6e-6  # the Huang sample's radii [m] (seed 004 §4.2)
 MAX_OVERLAP = 0.1  # the largest mean contact overlap a compaction may ask for, of the smallest radius
 
 
+HUANG_GRAINS, HUANG_SIDE = 1395, 1.25e-3  # the shipped sample: discs, nominal box side [m]
+# Nominal solid fractions n <pi r^2> / side^2 that the seeding and the servo were measured to
+# turn into a sample (150 discs, 0.2 to 2.0; the shipped 0.857); at 3 the shrunk discs no longer
+# fit the box, and far below 0.5 a large sample's walls have further to go than the cycles allow.
+NOMINAL_SOLID_FRACTION = (0.5, 1.5)
+
+
+def nominal_side(n: int) -> float:
+    """The box side that holds ``n`` discs at the shipped sample's nominal solid fraction: the
+    Huang 1.25 mm scaled by sqrt(n / 1395)."""
+    return HUANG_SIDE * float(np.sqrt(n / HUANG_GRAINS))
+
+
+def check_nominal_side(flag: str, n: int, size: float, r_min: float = R_MIN, r_max: float = R_MAX) -> None:
+    """An :class:`~hmdem.cli.InputError` naming ``flag`` when a box of side ``size`` would hold
+    ``n`` discs of radii uniform in [r_min, r_max] outside :data:`NOMINAL_SOLID_FRACTION`."""
+    disc_area = n * np.pi * (r_min**2 + r_min * r_max + r_max**2) / 3.0  # n <pi r^2>
+    low, high = NOMINAL_SOLID_FRACTION
+    if not disc_area / high <= size**2 <= disc_area / low:
+        raise InputError(f"{flag}: must hold the {n} discs at a solid fraction in [{low:g}, {high:g}], a side in "
+                         f"[{np.sqrt(disc_area / high):.3g}, {np.sqrt(disc_area / low):.3g}] m, got {size:g}")
+
+
 class CompactionNotSettled(CommandFailed):
     """The servo did not bring the walls to the confining stress, in equilibrium, within its cycles."""
 
@@ -191,8 +214,9 @@ def main(argv=None) -> int:
     parser = Parser(prog=prog, description="Servo-compact a disc sample (Huang radial-injection set-up).")
     parser.add_argument("--out", type=Path, required=True, help="packing file to write, ending in .npz")
     parser.add_argument("--n", type=grain_count, default=1395, help="number of discs (default %(default)d)")
-    parser.add_argument("--size", type=positive_number, default=1.25e-3,
-                        help="nominal box side [m] (default %(default)g; the final box follows from the stress)")
+    parser.add_argument("--size", type=positive_number,
+                        help="nominal box side [m] (default 1.25e-3 x sqrt(N / 1395), the shipped sample's grain "
+                             "density; the final box follows from the stress)")
     parser.add_argument("--stress", type=positive_number, default=0.14e6,
                         help="confining stress [Pa] (default %(default)g, the Huang sample's)")
     parser.add_argument("--seed", type=non_negative_int, default=0, help="seed of the radii and the seeding "
@@ -213,10 +237,12 @@ def write_packing(args) -> int:
     from ..rundir import replaced_atomically
 
     check_confining_stress("--stress", [args.stress], args.contact_stiffness)
+    size = nominal_side(args.n) if args.size is None else args.size
+    check_nominal_side("--size" if args.size is not None else "--n", args.n, size)
     t0 = time.perf_counter()
     bar = None if args.quiet else CompactionBar()
     try:
-        pk = compact_sample(args.n, args.size, stress=args.stress, seed=args.seed, k_n=args.contact_stiffness,
+        pk = compact_sample(args.n, size, stress=args.stress, seed=args.seed, k_n=args.contact_stiffness,
                             progress=bar)
     finally:
         if bar is not None:

@@ -14,7 +14,7 @@ from ..coupling.darcy import STRESSES, PackingPermeability, packing_permeability
 from ..network.contact_graph import NEAR_CONTACT_GAP
 from ..network.packing import CONTACT_STIFFNESS, GRAIN_DENSITY, DiscPacking
 from .assembly import DiscAssembly
-from .compaction import compact_sample
+from .compaction import compact_sample, nominal_side
 
 SETTLE_CYCLES = 2000  # relaxation after loading the packing (contact shear history is not stored)
 
@@ -55,15 +55,16 @@ def stored_permeability(pk: DiscPacking, law: ApertureLaw | None = None,
     return packing_permeability(pk, lambda pairs: packing_contact_forces(pk, pairs), law, contact_gap)
 
 
-def permeability_sweep(stresses=STRESSES, n: int = 1395, seed: int = 0, *, size: float = 1.25e-3,
+def permeability_sweep(stresses=STRESSES, n: int = 1395, seed: int = 0, *, size: float | None = None,
                        r_min: float = 13.0e-6, r_max: float = 21.6e-6, k_n: float = CONTACT_STIFFNESS,
                        density: float = GRAIN_DENSITY, law: ApertureLaw | None = None,
                        contact_gap: float = NEAR_CONTACT_GAP, progress=None,
                        compaction_progress=None) -> list[PackingPermeability]:
     """Compact the sample (same seed, hence the same initial seeding) to each confining stress
-    with :func:`hmdem.dem.compaction.compact_sample` and return the permeability at each.
-    ``progress(k, stress, result)`` is called after each stress, ``compaction_progress`` is
+    with :func:`hmdem.dem.compaction.compact_sample` (nominal box side ``size``, default
+    :func:`~hmdem.dem.compaction.nominal_side`) and return the permeability at each. ``progress(k, stress, result)`` is called after each stress, ``compaction_progress`` is
     :func:`compact_sample`'s ``progress(cycles, wall_stresses)``."""
+    size = nominal_side(n) if size is None else size
     out = []
     for k, stress in enumerate(stresses):
         t0 = time.perf_counter()
