@@ -55,6 +55,10 @@ MAX_LAYERS = 10_000  # 1.4M particles in the channel; 1e8 layers asked numpy for
 MAX_CHANNEL_STEPS = 1_000_000  # 3-10 h at the default size; the defaults take 355 (Poiseuille) and 674 steps
 MAX_CHANNEL_GRAVITY = 1e150  # squared accelerations overflow near 1.3e154 m/s^2: at 1e160 the column came out garbage
 MIN_START_LAYERS = 3  # a starting slab lower than this is mostly surface
+WATER_SOUND_SPEED = 1500.0  # m/s: a weakly compressible fluid's c0 stays below it (Table 1: 1.5-18)
+# pairwise strengths per dx: 1000x the calibration's first guess (sigma 0.074 N/m at 2e-3) is a
+# surface tension ~1000x water's; at 1e300 N the accelerations' squares overflowed
+MAX_STRENGTH_PER_DX = 2.0  # N/m
 SNAPSHOT_EVERY = 4  # samples between the droplet's ParaView frames
 # seed 000's spacings are 0.2-0.5 mm; at 1e-300 m, dx^3 underflowed to a division by zero
 particle_spacing = number_in("a particle spacing in [1e-06, 1] m", lambda v: 1e-6 <= v <= 1)
@@ -72,6 +76,9 @@ class _Parser(OneLineParser):
 
 
 angle = number_in("a contact angle in (0, 180) degrees", lambda v: 0 < v < 180)
+# at 1e300 m/s the equation of state's c0^2 overflowed and the drop came out as NaN
+sound_speed_value = number_in(f"a speed of sound in (0, {WATER_SOUND_SPEED:g}] m/s, water's own at most",
+                              lambda v: 0 < v <= WATER_SOUND_SPEED)
 
 
 def build_parser() -> OneLineParser:
@@ -100,7 +107,7 @@ def build_parser() -> OneLineParser:
     p.add_argument("--s-ff", type=positive_number, help="fluid-fluid pairwise strength [N] (with --s-sf, "
                    "instead of a calibration)")
     p.add_argument("--s-sf", type=non_negative_number, help="solid-fluid pairwise strength [N]")
-    p.add_argument("--c0", type=positive_number, help="speed of sound [m/s] (default: seed 000 Table 1)")
+    p.add_argument("--c0", type=sound_speed_value, help="speed of sound [m/s] (default: seed 000 Table 1)")
     p.add_argument("--anneal", type=non_negative_number,
                    help=ANNEAL_HELP + " (default: the calibration's own, 0.3 for the shipped ones; 0 with "
                         "--s-ff/--s-sf)")
@@ -116,7 +123,7 @@ def build_parser() -> OneLineParser:
     p.add_argument("--theta", type=angle, default=DEFAULT_THETA, help=f"target contact angle [deg] (default {DEFAULT_THETA})")
     p.add_argument("--surface-tension", type=positive_number, default=droplet.SURFACE_TENSION,
                    help=f"target surface tension [N/m] (default {droplet.SURFACE_TENSION})")
-    p.add_argument("--c0", type=positive_number, help="speed of sound [m/s] (default: seed 000 Table 1)")
+    p.add_argument("--c0", type=sound_speed_value, help="speed of sound [m/s] (default: seed 000 Table 1)")
     p.add_argument("--ridge-sizes", type=int_at_least(MIN_RIDGE_CELLS), nargs="+", default=[DROP_RADIUS_CELLS],
                    metavar="N", help="starting radii [dx] of the zero-gravity ridges whose mean angle is "
                    f"calibrated (each >= {MIN_RIDGE_CELLS}; default {DROP_RADIUS_CELLS})")
@@ -255,6 +262,11 @@ def droplet_parameters(args):
     if (args.s_ff is None) != (args.s_sf is None):
         raise InputError("--s-ff and --s-sf: give both strengths or neither")
     if args.s_ff is not None:
+        strongest = MAX_STRENGTH_PER_DX * args.dx
+        for flag, value in (("--s-ff", args.s_ff), ("--s-sf", args.s_sf)):
+            if value > strongest:
+                raise InputError(f"{flag}: must be at most {strongest:g} N at dx = {args.dx:g} m "
+                                 f"({MAX_STRENGTH_PER_DX:g} dx, a surface tension ~1000x water's), got {value:g}")
         args.theta = args.theta or DEFAULT_THETA
         args.anneal = args.anneal or 0.0
         c0 = args.c0 or sound_speed(args.dx)
@@ -268,10 +280,13 @@ def droplet_parameters(args):
                 "target_contact_angle_deg")
         try:
             cal = json.loads((args.calibration / "summary.json").read_text())
+            if not isinstance(cal, dict):
+                raise ValueError("its summary.json is not a JSON object")
             if cal.get("status") != "finished":  # an interrupted one has no strengths yet
                 raise ValueError(f"its status is {cal.get('status')!r}")
             values = {k: float(cal[k]) for k in keys}
-            if not all(map(math.isfinite, values.values())):
+            anneal = float(cal.get("anneal_m_per_s", 0.0))  # older calibrations were damped
+            if not all(map(math.isfinite, [*values.values(), anneal])):
                 raise ValueError("it records a value that is not finite")
         except (OSError, ValueError, KeyError, TypeError) as exc:
             raise InputError(f"--calibration: {str(args.calibration)!r} is not a finished calibrate run "
@@ -281,7 +296,7 @@ def droplet_parameters(args):
         if args.theta is not None and abs(args.theta - values["target_contact_angle_deg"]) > 1e-2:
             raise InputError(f"--theta: the calibration targets {values['target_contact_angle_deg']:g}°")
         args.theta = values["target_contact_angle_deg"]
-        same_protocol(args, float(cal.get("anneal_m_per_s", 0.0)), f"the calibration {str(args.calibration)!r}")
+        same_protocol(args, anneal, f"the calibration {str(args.calibration)!r}")
         params = SphParameters(dx=args.dx, c0=values["c0_m_per_s"], rho0_fluid=values["rho0_fluid"],
                                s_ff=values["s_ff_n"], s_sf=values["s_sf_n"], gravity=gravity, anneal=args.anneal,
                                seed=args.seed)
@@ -318,9 +333,16 @@ def open_checkpoint(directory: Path, out: Path, state: str, restore):
         raise InputError(f"--checkpoint: {exc}") from None
 
 
+def drop_cells(volume: float, dx: float) -> float:
+    """How many dx^3 cells a drop of ``volume`` fills, rounded off at 1e-6 of a cell (5e-8 m^3 at
+    dx = 5e-4 m is 399.99999999999994 in floating point)."""
+    return round(volume / dx**3, 6)
+
+
 def run_droplet(args) -> int:
-    if not MIN_DROP_CELLS <= args.volume / args.dx**3 <= MAX_DROP_CELLS:
-        raise InputError(f"--volume: {args.volume:g} m^3 is {args.volume / args.dx**3:.3g} particles at dx = "
+    cells = drop_cells(args.volume, args.dx)
+    if not MIN_DROP_CELLS <= cells <= MAX_DROP_CELLS:
+        raise InputError(f"--volume: {args.volume:g} m^3 is {cells:.3g} particles at dx = "
                          f"{args.dx:g} m; from {MIN_DROP_CELLS:,} to {MAX_DROP_CELLS:,} are allowed")
     if args.start_height is not None and args.start_height < MIN_START_LAYERS * args.dx:
         raise InputError(f"--start-height: {args.start_height:g} m is under {MIN_START_LAYERS} particle layers at "

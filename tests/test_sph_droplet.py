@@ -437,7 +437,13 @@ def test_droplet_bad_input_is_one_line(tmp_path):
                        (["droplet", "--gravity", "1e300"], "--gravity"),
                        # dx^3 underflowed to a division by zero; 1e300 m^3 failed building its block
                        (["droplet", "--dx", "1e-300"], "--dx"), (["droplet", "--volume", "1e300"], "--volume"),
-                       (["hydrostatic", "--layers", "100000000"], "--layers")):
+                       (["hydrostatic", "--layers", "100000000"], "--layers"),
+                       # a new-user pass: c0^2 and the forces' squares overflowed to a NaN drop, which
+                       # a SIGTERM then turned into a traceback with no run directory
+                       (["droplet", "--s-ff", "1e-6", "--s-sf", "1e-6", "--c0", "1e300"], "--c0"),
+                       (["calibrate", "--c0", "1e300"], "--c0"),
+                       (["droplet", "--s-ff", "1e300", "--s-sf", "1e-6"], "--s-ff"),
+                       (["droplet", "--s-ff", "1e-6", "--s-sf", "1e300"], "--s-sf")):
         bad = tmp_path / "bad"
         proc = subprocess.run(cmd + args + ["--out", str(bad)], capture_output=True, text=True)
         lines = proc.stderr.strip().splitlines()
@@ -452,6 +458,26 @@ def test_droplet_bad_input_is_one_line(tmp_path):
     assert proc.returncode == 2 and proc.stderr.strip() == (
         f"python -m sph_bridge: --calibration: {str(interrupted)!r} is not a finished calibrate run directory "
         "(ValueError: its status is 'interrupted')")
+    # a new-user pass: these two ended in AttributeError and TypeError tracebacks
+    for text in ('[1, 2]', '{"status": "finished", "dx_m": 0.0005, "c0_m_per_s": 1.5, "rho0_fluid": 1000, '
+                 '"s_ff_n": 1e-6, "s_sf_n": 7e-7, "surface_tension_n_per_m": 0.072, '
+                 '"target_contact_angle_deg": 65.16, "anneal_m_per_s": null}'):
+        (interrupted / "summary.json").write_text(text)
+        proc = subprocess.run(cmd + ["droplet", "--calibration", str(interrupted), "--out", str(tmp_path / "bad")],
+                              capture_output=True, text=True)
+        lines = proc.stderr.strip().splitlines()
+        assert proc.returncode == 2 and len(lines) == 1, proc.stderr
+        assert lines[0].startswith(f"python -m sph_bridge: --calibration: {str(interrupted)!r} is not a finished ")
+        assert not (tmp_path / "bad").exists()
+
+
+def test_a_drop_of_exactly_the_smallest_size_is_allowed():
+    # a new-user pass: 5e-8 m^3 at dx = 5e-4 m is 399.99999999999994 cells in floating point, and
+    # was refused as "400 particles ... from 400 to 10,000,000 are allowed"
+    from sph_bridge.__main__ import MIN_DROP_CELLS, drop_cells
+
+    assert 5e-8 / 5e-4**3 < MIN_DROP_CELLS
+    assert drop_cells(5e-8, 5e-4) == MIN_DROP_CELLS
 
 
 def stand_in_calibration_trials(monkeypatch, measured=None):
