@@ -465,7 +465,7 @@ def test_workers_do_not_change_the_numbers(tmp_path, monkeypatch):
     from sph_bridge.lga import cli, pool
 
     calls = []
-    monkeypatch.setattr(cli, "run_in_workers", lambda *a: calls.append(a[1]) or pool.run_in_workers(*a))
+    monkeypatch.setattr(cli, "run_in_workers", lambda *a, **k: calls.append(a[1]) or pool.run_in_workers(*a, **k))
     args = ["permeability", "--hurst", "0.5", "--surfaces", "1", "--nx", "104", "--ny", "8", "--steps", "200",
             "--relative-roughness", "0.741", "--relative-roughness", "0.417", "--quiet"]
     runs = {}
@@ -501,7 +501,9 @@ def test_a_lost_worker_fails_the_run_and_keeps_the_other_channels(tmp_path, monk
                      "--workers", "2", "--out", str(out)]) == 1
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "failed"
-    assert summary["status_message"] == "channel 0's worker was killed by SIGKILL (the out-of-memory killer?)"
+    # the channel as summary.json's points name it (a new-user pass: "channel 0" said nothing)
+    assert summary["status_message"] == ("channel H0.5-s0-r0.741's worker was killed by SIGKILL "
+                                         "(the out-of-memory killer?)")
     assert [len(p["drives"]) for p in summary["points"]] == [2]
     assert (out / "config.toml").exists() and (out / "timeseries.csv").exists()
 
@@ -512,6 +514,8 @@ def test_a_lost_worker_is_named_by_its_signal():
     assert lost_worker(2, -9) == "channel 2's worker was killed by SIGKILL (the out-of-memory killer?)"
     assert lost_worker(0, -35) == "channel 0's worker was killed by signal 35"  # real-time: no name
     assert lost_worker(1, 1) == "channel 1's worker ended (exit code 1) without sending its results"
+    # a new-user pass: the command names its channels as summary.json's points do
+    assert lost_worker("H0.3-s0-r0.741", -9).startswith("channel H0.3-s0-r0.741's worker was killed by SIGKILL")
 
 
 def test_sigterm_stops_the_workers_and_keeps_their_drives(tmp_path):
@@ -607,3 +611,32 @@ def test_workers_beyond_the_cores_run_on_the_cores_with_a_warning(capsys, monkey
     assert cli.worker_count(100000, "lga") == 2
     assert "lga: warning: --workers 100000 on 2 core(s); running 2" in capsys.readouterr().err
     assert cli.worker_count(1, "lga") == 1 and capsys.readouterr().err == ""
+
+
+def test_a_drive_past_the_mach_limit_or_short_of_its_precision_says_so(tmp_path, capsys):
+    # a new-user pass: in a 16-row channel the ladder's first rung (Re 20) ran at u_max 0.41,
+    # past the seed's 0.30 (C17), with status "finished" and a console line quoting the aim
+    # 0.285 as if measured; and a window that hit its longest length short of 1 % said nothing
+    out = tmp_path / "nl"
+    assert lga_main(["nonlinear", "--nx", "104", "--ny", "16", "--out", str(out), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["rough_u_max"] > summary["mach_limit"] and summary["rough_within_mach_limit"] is False
+    assert f"u_max = {summary['rough_u_max']:.3f}, past the seed's 0.3" in err
+    drives = [d for rows in summary["series"].values() for d in rows]
+    for d in drives:  # the flag is the window's own: Q's standard error against the 1 % it aimed at
+        assert d["precision_target"] == 0.01
+        assert d["precise"] == (d["flow_rate_error"] <= 0.01 * abs(d["flow_rate"]))
+    assert ("longest averaging window" in err) == (not all(d["precise"] for d in drives))
+
+
+def test_a_drive_lost_in_the_noise_says_so(tmp_path, capsys):
+    # a new-user pass: 100 steps at g = 0.001 in an 8-row channel gave nu = -0.16 from the slope
+    # and a parabola of R^2 0.01, reported as a finished run with numpy's RuntimeWarning
+    out = tmp_path / "p"
+    assert lga_main(["poiseuille", "--nx", "64", "--ny", "8", "--g", "0.001", "--steps", "100", "--out", str(out),
+                     "--quiet"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["viscosity_fit"] <= 0 or summary["profile_r2"] < 0.9
+    err = capsys.readouterr().err
+    assert "the flow is lost in the lattice's noise" in err and "RuntimeWarning" not in err

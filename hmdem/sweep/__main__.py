@@ -62,8 +62,8 @@ def build_parser() -> argparse.ArgumentParser:
                            f"[{LOG_CA_STAR_RANGE[0]:g}, {LOG_CA_STAR_RANGE[1]:g}] (default {DEFAULT_LOG_CA})")
     len_.add_argument("--seeds", type=positive_int, default=1, help="aperture seeds per point, 0..K-1 (default 1)")
     len_.add_argument("--workers", type=positive_int,
-                      help="worker processes of the embedded Dask cluster (default: one per core; more run on "
-                           "the cores, with a warning)")
+                      help="worker processes of the embedded Dask cluster (default: one per core; more are cut "
+                           "to the core count, with a warning)")
     len_.add_argument("--scheduler", help="address of an existing Dask scheduler, e.g. tcp://host:8786")
     len_.add_argument("--packing", type=Path, help="packing .npz (default: the shipped 65 mm packing)")
     len_.add_argument("--out", type=Path, help="sweep directory (default runs/lenormand-<time>); an existing "

@@ -35,9 +35,11 @@ from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_tom
 from ..interrupts import exit_status
 from ..output import run_table
 from . import figures, studies
+from .flow import AVERAGE_TIMES
 from .lattice import ROW
 from .pool import run_in_workers
 from .rules import REST_DENSITY, viscosity
+from .studies import MAX_AVERAGE_TIMES
 
 PROG = "python -m sph_bridge lga"
 PAPER_OPENINGS = (1.35, 1.7, 2.4)  # delta_av/(2 y_max) of the issue's permeability study
@@ -46,6 +48,9 @@ ROUGH_VELOCITIES = (0.005, 0.01)  # mean velocities Q_full/delta_av aimed at: Da
 NONLINEAR_REYNOLDS = (20, 50, 80, 115, 150, 180)  # seed 003 §5: Re ~ 20-180
 MACH_LIMIT = 0.30  # seed 003 §5: the largest velocity it allowed (digest C17)
 MACH_AIM = 0.95 * MACH_LIMIT  # the ladder's last drive aims 5 % under it: aims land within a few %
+MIN_PROFILE_R2 = 0.9  # the default drives' parabolas fit to R^2 > 0.999; noise alone gives ~0
+# the ladder's strong drives reach 1 % sooner: shorter averaging windows than a linear drive's
+NONLINEAR_AVERAGE_TIMES, NONLINEAR_MAX_AVERAGE_TIMES = 10, 100  # slowest-mode relaxation times
 
 
 class _Parser(OneLineParser):
@@ -88,9 +93,11 @@ def build_parser() -> OneLineParser:
                        help=("largest asperity y_max in rows" if rough else "fluid rows") + " (default %(default)s)")
         p.add_argument("--density", type=density, default=REST_DENSITY,
                        help="particles per node (default %(default)s, seed 003)")
-        p.add_argument("--steps", type=int_at_least(100), help="averaging steps per drive (default: 30 relaxation "
-                                                                 "times of the slowest viscous mode, extended up "
-                                                                 "to 400 until Q is known to 1 %%)")
+        times, most = ((NONLINEAR_AVERAGE_TIMES, NONLINEAR_MAX_AVERAGE_TIMES) if name == "nonlinear"
+                       else (AVERAGE_TIMES, MAX_AVERAGE_TIMES))
+        p.add_argument("--steps", type=int_at_least(100), help=f"averaging steps per drive (default: {times} "
+                                                                 "relaxation times of the slowest viscous mode, "
+                                                                 f"extended up to {most} until Q is known to 1 %%)")
         p.add_argument("--seed", type=int_at_least(0, "a non-negative integer"), default=0,
                        help="random seed of the lattice and (rough) the first surface (default 0)")
         if name in ("poiseuille", "rough"):
@@ -112,7 +119,7 @@ def build_parser() -> OneLineParser:
                            help="surfaces per H (default 2, at most 1000)")
             p.add_argument("--workers", type=int_at_least(1), default=available_cores(),
                            help="channels run side by side in worker processes, one core each (default: the "
-                                "machine's %(default)s cores; more run on those, with a warning; the numbers do "
+                                "machine's %(default)s cores; more are cut to that, with a warning; the numbers do "
                                 "not depend on it)")
         p.add_argument("--out", type=Path, help="run directory (must not exist; default runs/lga-<case>-<time>-<pid>)")
         p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -182,7 +189,8 @@ def run_channels(args, channel_drives, plan_of) -> str:
     stopped, lost = False, []
     if workers > 1:
         try:
-            stopped, series, lost = run_in_workers(jobs, workers, bar, bar.channel_done)
+            stopped, series, lost = run_in_workers(jobs, workers, bar, bar.channel_done,
+                                                   names=[name for name, _, _ in channel_drives])
         except KeyboardInterrupt:  # before the pool took over the signals: no channel has started
             stopped = True
     else:
@@ -209,6 +217,18 @@ def common_config(args) -> dict:
                         "averaging_steps": args.steps or "auto"}}
 
 
+def warn_imprecise(command: str, channels) -> None:
+    """A warning for each (name, channel) with drives whose window reached its longest allowed
+    length before Q was known to the precision it aimed at (an interrupted drive is not one)."""
+    for name, channel in channels:
+        missed = [r for r in channel.results if not r.interrupted and not r.precise]
+        if missed:
+            worst = max(r.relative_error for r in missed)
+            print(f"lga {command}: warning: {len(missed)} of {len(channel.results)} drives of {name} ended at their "
+                  f"longest averaging window with Q known to {worst:.2%}, not {missed[0].precision:.0%} "
+                  f"(\"precise\": false in summary.json; --steps N fixes a longer window)", file=sys.stderr)
+
+
 def finish(args, status: str, started: float, summary: dict) -> dict:
     return {"case": args.command, "status": status, "status_message": getattr(args, "status_message", ""),
             "wall_time_s": time.perf_counter() - started, **summary}
@@ -226,6 +246,7 @@ def run_poiseuille(args) -> int:
     status = run_channels(args, [("smooth", channel, forcings)], plan_for(args))
     done = [r for r in channel.results if r.averaging_steps > 0]
     channel.results = done
+    warn_imprecise(args.command, [("the channel", channel)])
     summary = {"geometry": "half channel under a mirror" if args.mirror else "smooth channel",
                "width": channel.aperture, "fluid_rows": args.ny, "length": args.nx,
                "reynolds_definition": "Re = Q_full / nu (Eq. 6)", "drives": channel.rows()}
@@ -233,6 +254,10 @@ def run_poiseuille(args) -> int:
         summary.update(studies.poiseuille_summary(channel))
         summary["force_mismatch_max"] = max(abs(r.force_mismatch) for r in done)
         summary["u_max"] = max(r.u_max for r in done)
+        if not (summary["viscosity_fit"] > 0 and summary["profile_r2"] >= MIN_PROFILE_R2):
+            print(f"lga poiseuille: warning: the flow is lost in the lattice's noise (nu from the slope "
+                  f"{summary['viscosity_fit']:.4g}, parabola R^2 {summary['profile_r2']:.3f}): drive harder (--g) or "
+                  "average longer (--steps)", file=sys.stderr)
     summary = finish(args, status, started, summary)
 
     def write(tmp):
@@ -294,6 +319,7 @@ def run_rough(args) -> int:
     forcings = rough_forcings(args, channel)
     status = run_channels(args, [("rough", channel, forcings)], plan_for(args))
     channel.results = [r for r in channel.results if r.averaging_steps > 0]
+    warn_imprecise(args.command, [("the channel", channel)])
     rows = channel.rows()
     summary = {"reynolds_definition": "Re = Q_full / nu (Eq. 6)", "mach_limit": MACH_LIMIT}
     if rows:
@@ -348,6 +374,7 @@ def run_permeability(args) -> int:
     points = []
     for name, channel, _ in jobs:
         channel.results = [r for r in channel.results if r.averaging_steps > 0]
+        warn_imprecise(args.command, [(name, channel)])
         if channel.results:
             points.append({"name": name, **rough_row(channel, channel.rows(), targets[name])})
     summary = {"reynolds_definition": "Re = Q_full / nu (Eq. 6)", "points": points}
@@ -370,8 +397,9 @@ def run_permeability(args) -> int:
         "hurst": hursts, "relative_roughness": roughnesses, "surfaces": args.surfaces}},
         summary, args.timeseries, write)
     if "alpha" in summary:
+        partial = "" if status == "finished" else " (of the channels' drives done so far)"
         print(f"lga permeability: {status}; {len(points)} channels, fitted alpha = {summary['alpha']:.3f} +- "
-              f"{summary['alpha_error']:.3f} (paper {studies.PAPER_ALPHA})")
+              f"{summary['alpha_error']:.3f}{partial} (paper {studies.PAPER_ALPHA})")
     else:
         print(f"lga permeability: {status}; {len(points)} channel(s) finished, too few to fit alpha")
     print(f"run directory: {out}")
@@ -418,7 +446,8 @@ def run_nonlinear(args) -> int:
     smooth = studies.smooth(args.nx, half_rows, True)
 
     def plan_of(channel):  # strong drives: a shorter window reaches 1 % sooner
-        return studies.Plan.for_aperture(channel.aperture, args.steps, times=10, max_times=100)
+        return studies.Plan.for_aperture(channel.aperture, args.steps, times=NONLINEAR_AVERAGE_TIMES,
+                                         max_times=NONLINEAR_MAX_AVERAGE_TIMES)
 
     total = sum(plan_of(ch).most_steps(len(NONLINEAR_REYNOLDS)) for ch in (rough, smooth))
     bar = Progress(args, total)
@@ -430,7 +459,14 @@ def run_nonlinear(args) -> int:
     except KeyboardInterrupt:
         status = "interrupted"
     bar.close(finished=status == "finished")
+    warn_imprecise(args.command, (("rough", rough), ("smooth", smooth)))
     series = {name: ch.rows() for name, ch in (("rough", rough), ("smooth", smooth)) if ch.results}
+    for name, rows in series.items():
+        fastest = max(rows, key=lambda r: r["u_max"])
+        if fastest["u_max"] > MACH_LIMIT:  # the ladder's later rungs keep under it; a first one may not
+            print(f"lga nonlinear: warning: the {name} channel's drive at Re = {fastest['reynolds']:.0f} reached "
+                  f"u_max = {fastest['u_max']:.3f}, past the seed's {MACH_LIMIT} (C17): too narrow a channel for "
+                  f"the ladder's Re {NONLINEAR_REYNOLDS[0]} first rung (a larger --ny widens it)", file=sys.stderr)
     summary = {"reynolds_definition": "Re = Q_full / nu (Eq. 6)", "mach_limit": MACH_LIMIT,
                "rough_opening": studies.opening(rough), "smooth_width": smooth.aperture, "series": series}
     for name, rows in series.items():
@@ -438,6 +474,7 @@ def run_nonlinear(args) -> int:
         summary[f"{name}_drag_increase"] = max(resistance) / resistance[0] - 1.0
         summary[f"{name}_reynolds_range"] = [rows[0]["reynolds"], rows[-1]["reynolds"]]
         summary[f"{name}_u_max"] = max(r["u_max"] for r in rows)
+        summary[f"{name}_within_mach_limit"] = summary[f"{name}_u_max"] <= MACH_LIMIT
     summary = finish(args, status, started, summary)
 
     def write(tmp):
@@ -491,8 +528,9 @@ def reynolds_ladder(args, name, channel, plan, bar) -> None:
             break  # the last aim, or one held at the Mach bound (C17)
         rung = studies.next_rung(channel.rows(), NONLINEAR_REYNOLDS[k + 1], MACH_AIM)
         if rung is None:
-            print(f"lga nonlinear: {name} ladder stops at Re = {channel.rows()[-1]['reynolds']:.0f} "
-                  f"(at u_max = {MACH_AIM} already)")
+            last = channel.rows()[-1]
+            print(f"lga nonlinear: {name} ladder stops at Re = {last['reynolds']:.0f} (its u_max, "
+                  f"{last['u_max']:.3f}, is within 2 % of the aim {MACH_AIM:.3f} or past it)")
             break
         g, aim = rung
         if aim < NONLINEAR_REYNOLDS[k + 1]:

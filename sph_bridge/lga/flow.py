@@ -53,13 +53,24 @@ class FlowResult:
     row_velocity: np.ndarray = field(repr=False)
     fields: Fields | None = field(default=None, repr=False)
     interrupted: bool = False
+    precision: float = 0.0  # the relative standard error of Q the window aimed at; 0: a fixed window
+
+    @property
+    def precise(self) -> bool:
+        """Whether Q reached ``precision`` (a fixed window's always does): a window may end at its
+        longest allowed length first."""
+        return self.precision <= 0 or bool(self.relative_error <= self.precision)
 
     @property
     def steady(self) -> bool:
         """The window's two halves agree: |drift| within 1 % or three standard errors of the
         difference (twice Q's standard error), whichever is larger."""
-        error = self.flow_rate_error / abs(self.flow_rate) if self.flow_rate else math.nan
-        return bool(abs(self.drift) <= max(0.01, 6.0 * error))
+        return bool(abs(self.drift) <= max(0.01, 6.0 * self.relative_error))
+
+    @property
+    def relative_error(self) -> float:
+        """Q's standard error over |Q|."""
+        return self.flow_rate_error / abs(self.flow_rate) if self.flow_rate else math.nan
 
     @property
     def force_mismatch(self) -> float:
@@ -71,7 +82,8 @@ class FlowResult:
                 "density_per_node": self.density, "viscosity_eq6": self.viscosity,
                 "force_applied_per_node": self.force_applied, "force_friction_per_node": self.force_friction,
                 "force_mismatch": self.force_mismatch, "flow_rate": self.flow_rate,
-                "flow_rate_error": self.flow_rate_error, "flow_rate_drift": self.drift, "steady": self.steady, "u_max": self.u_max,
+                "flow_rate_error": self.flow_rate_error, "flow_rate_drift": self.drift, "steady": self.steady,
+                "precision_target": self.precision, "precise": self.precise, "u_max": self.u_max,
                 "mach_max": self.u_max / math.sqrt(3.0 / 7.0), "interrupted": self.interrupted}
 
 
@@ -152,8 +164,10 @@ def drive(lattice: Lattice, g: float, spinup: int, average: int, progress=None, 
             raise
         stopped = True
     record.flush()
-    return _result(lattice, g, spinup, averaged, flow_rates, row_counts, row_momentum, samples, node_fields,
-                   stopped)
+    result = _result(lattice, g, spinup, averaged, flow_rates, row_counts, row_momentum, samples, node_fields,
+                     stopped)
+    result.precision = precision
+    return result
 
 
 class _Recorder:
@@ -219,7 +233,8 @@ def hydraulic_aperture(result: FlowResult, mirrored: bool) -> float:
     """delta_H from the cubic law in body-force form, delta_H^3 = 12 nu rho Q_full / f (seed 003
     Eq. 10; digest §1.6); Q_full is twice the simulated flow rate under a mirror."""
     q_full = result.flow_rate * (2.0 if mirrored else 1.0)
-    return (12.0 * result.viscosity * result.density * q_full / result.force_applied) ** (1.0 / 3.0)
+    cube = 12.0 * result.viscosity * result.density * q_full / result.force_applied
+    return cube ** (1.0 / 3.0) if cube > 0 else math.nan  # a mean flow against the drive (noise) has none
 
 
 def reynolds_number(result: FlowResult, mirrored: bool) -> float:

@@ -64,8 +64,8 @@ def _run_channel(conn, slot: int, steps_done, stop) -> None:
     conn.close()
 
 
-def lost_worker(k: int, exitcode: int | None) -> str:
-    """What became of job ``k``'s worker, for the run's status message."""
+def lost_worker(k, exitcode: int | None) -> str:
+    """What became of the worker of the job named (or numbered) ``k``, for the run's status message."""
     if exitcode is not None and exitcode < 0:
         try:
             name = signal.Signals(-exitcode).name
@@ -76,12 +76,15 @@ def lost_worker(k: int, exitcode: int | None) -> str:
     return f"channel {k}'s worker ended (exit code {exitcode}) without sending its results"
 
 
-def run_in_workers(jobs, workers: int, progress, channel_done=lambda: None) -> tuple[bool, list[list], list[str]]:
+def run_in_workers(jobs, workers: int, progress, channel_done=lambda: None,
+                   names=None) -> tuple[bool, list[list], list[str]]:
     """Run ``jobs`` = [(channel, forcings, plan, density, seed)] on up to ``workers`` processes
     and set each channel's ``results``; ``progress(steps)`` is called with the steps done since
     its last call and ``channel_done()`` as each channel completes. Returns whether the run was
     interrupted (Ctrl-C or SIGTERM in the main process), each job's timeseries rows in job order,
-    and a line for each worker lost (its channel has no results)."""
+    and a line for each worker lost (its channel has no results), naming the channel by
+    ``names[k]`` (default: its index)."""
+    names = list(range(len(jobs))) if names is None else names
     context = multiprocessing.get_context("spawn")
     steps_done = context.RawArray("q", len(jobs))
     stop = context.RawValue("b", 0)
@@ -142,9 +145,9 @@ def run_in_workers(jobs, workers: int, progress, channel_done=lambda: None) -> t
                 process.join()
                 del running[k]
                 if message[0] == "error":
-                    raise RuntimeError(f"channel {k} failed in its worker process:\n{message[1]}")
+                    raise RuntimeError(f"channel {names[k]} failed in its worker process:\n{message[1]}")
                 if message[0] == "lost":
-                    lost.append(lost_worker(k, process.exitcode))
+                    lost.append(lost_worker(names[k], process.exitcode))
                     continue
                 _, jobs[k][0].results, series[k], stopped = message
                 stopped_early |= stopped  # only when the flag was up or the main process gone
