@@ -56,8 +56,8 @@ MAX_CHANNEL_STEPS = 1_000_000  # 3-10 h at the default size; the defaults take 3
 MAX_CHANNEL_GRAVITY = 1e150  # squared accelerations overflow near 1.3e154 m/s^2: at 1e160 the column came out garbage
 MIN_START_LAYERS = 3  # a starting slab lower than this is mostly surface
 WATER_SOUND_SPEED = 1500.0  # m/s: a weakly compressible fluid's c0 stays below it (Table 1: 1.5-18)
-# pairwise strengths per dx: 1000x the calibration's first guess (sigma 0.074 N/m at 2e-3) is a
-# surface tension ~1000x water's; at 1e300 N the accelerations' squares overflowed
+# pairwise strengths per dx: 1000x the calibration's first guess (sigma 0.074 N/m at 2e-3 N/m;
+# sigma grows as about s^1.5); at 1e300 N the accelerations' squares overflowed
 MAX_STRENGTH_PER_DX = 2.0  # N/m
 SNAPSHOT_EVERY = 4  # samples between the droplet's ParaView frames
 # seed 000's spacings are 0.2-0.5 mm; at 1e-300 m, dx^3 underflowed to a division by zero
@@ -266,7 +266,8 @@ def droplet_parameters(args):
         for flag, value in (("--s-ff", args.s_ff), ("--s-sf", args.s_sf)):
             if value > strongest:
                 raise InputError(f"{flag}: must be at most {strongest:g} N at dx = {args.dx:g} m "
-                                 f"({MAX_STRENGTH_PER_DX:g} dx, a surface tension ~1000x water's), got {value:g}")
+                                 f"({MAX_STRENGTH_PER_DX:g} dx, 1000x the strength near water's surface tension), "
+                                 f"got {value:g}")
         args.theta = args.theta or DEFAULT_THETA
         args.anneal = args.anneal or 0.0
         c0 = args.c0 or sound_speed(args.dx)
@@ -288,6 +289,9 @@ def droplet_parameters(args):
             anneal = float(cal.get("anneal_m_per_s", 0.0))  # older calibrations were damped
             if not all(map(math.isfinite, [*values.values(), anneal])):
                 raise ValueError("it records a value that is not finite")
+            if not (0 < values["c0_m_per_s"] <= WATER_SOUND_SPEED
+                    and max(values["s_ff_n"], values["s_sf_n"]) <= MAX_STRENGTH_PER_DX * values["dx_m"]):
+                raise ValueError("its c0 or strengths are beyond what --c0, --s-ff and --s-sf allow")
         except (OSError, ValueError, KeyError, TypeError) as exc:
             raise InputError(f"--calibration: {str(args.calibration)!r} is not a finished calibrate run "
                              f"directory ({exc.__class__.__name__}: {exc})") from None

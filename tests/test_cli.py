@@ -29,15 +29,16 @@ DATA = Path(__file__).resolve().parent.parent / "hmdem" / "data"
     ("sph_bridge", ["lga", "poiseuille", "--mirr"], "--mirr"),
 ])
 def test_a_prefix_of_an_option_is_refused(tmp_path, module, args, prefix):
-    # a new-user pass: argparse took --sigma for calibrate's --sigma3, silently (the old code
-    # would start the run: the timeout fails the test)
+    # a new-user pass: argparse took --sigma for calibrate's --sigma3, silently. The --out exists,
+    # so the old code refused that instead, at once and with another message
     out = tmp_path / ("p.npz" if module == "hmdem.dem.compaction" else "run")
+    out.write_text("kept")
     proc = subprocess.run([sys.executable, "-m", module, *args, "--out", str(out)], capture_output=True, text=True,
                           cwd=tmp_path, timeout=120)
     assert proc.returncode == 2
     err = proc.stderr.strip().splitlines()
     assert len(err) == 1 and f"unrecognized arguments: {prefix}" in err[0]
-    assert list(tmp_path.iterdir()) == []
+    assert list(tmp_path.iterdir()) == [out] and out.read_text() == "kept"
 
 
 @pytest.mark.parametrize("args,name", [

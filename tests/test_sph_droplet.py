@@ -458,10 +458,12 @@ def test_droplet_bad_input_is_one_line(tmp_path):
     assert proc.returncode == 2 and proc.stderr.strip() == (
         f"python -m sph_bridge: --calibration: {str(interrupted)!r} is not a finished calibrate run directory "
         "(ValueError: its status is 'interrupted')")
-    # a new-user pass: these two ended in AttributeError and TypeError tracebacks
-    for text in ('[1, 2]', '{"status": "finished", "dx_m": 0.0005, "c0_m_per_s": 1.5, "rho0_fluid": 1000, '
-                 '"s_ff_n": 1e-6, "s_sf_n": 7e-7, "surface_tension_n_per_m": 0.072, '
-                 '"target_contact_angle_deg": 65.16, "anneal_m_per_s": null}'):
+    # a new-user pass: the first two ended in AttributeError and TypeError tracebacks; the third
+    # holds a c0 that --c0 refuses (it overflowed)
+    finished = ('{"status": "finished", "dx_m": 0.0005, "c0_m_per_s": %s, "rho0_fluid": 1000, "s_ff_n": 1e-6, '
+                '"s_sf_n": 7e-7, "surface_tension_n_per_m": 0.072, "target_contact_angle_deg": 65.16, '
+                '"anneal_m_per_s": %s}')
+    for text in ('[1, 2]', finished % ("1.5", "null"), finished % ("1e300", "0.3")):
         (interrupted / "summary.json").write_text(text)
         proc = subprocess.run(cmd + ["droplet", "--calibration", str(interrupted), "--out", str(tmp_path / "bad")],
                               capture_output=True, text=True)
@@ -471,13 +473,21 @@ def test_droplet_bad_input_is_one_line(tmp_path):
         assert not (tmp_path / "bad").exists()
 
 
-def test_a_drop_of_exactly_the_smallest_size_is_allowed():
+def test_a_drop_of_exactly_the_smallest_size_is_allowed(tmp_path, monkeypatch):
     # a new-user pass: 5e-8 m^3 at dx = 5e-4 m is 399.99999999999994 cells in floating point, and
     # was refused as "400 particles ... from 400 to 10,000,000 are allowed"
-    from sph_bridge.__main__ import MIN_DROP_CELLS, drop_cells
+    from sph_bridge import __main__ as cli
 
-    assert 5e-8 / 5e-4**3 < MIN_DROP_CELLS
-    assert drop_cells(5e-8, 5e-4) == MIN_DROP_CELLS
+    class PassedTheVolumeCheck(Exception):
+        pass
+
+    def stop(args):
+        raise PassedTheVolumeCheck
+
+    assert 5e-8 / 5e-4**3 < cli.MIN_DROP_CELLS
+    monkeypatch.setattr(cli, "droplet_parameters", stop)  # what the command does next
+    with pytest.raises(PassedTheVolumeCheck):
+        cli.main(["droplet", "--gravity", "0", "--volume", "5e-8", "--quiet", "--out", str(tmp_path / "d")])
 
 
 def stand_in_calibration_trials(monkeypatch, measured=None):

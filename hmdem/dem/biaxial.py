@@ -102,10 +102,10 @@ class BiaxialResult:
         return len(self.strain_axial) > 0 and self.strain_axial[-1] > self.fit_strain[1]
 
     def secant_modulus_50(self) -> float:
-        """E50: secant of q at half its (smoothed) peak, for comparison with the fitted E; NaN,
-        as E is, for a curve that stopped inside the fit window (its "peak" is its last point)."""
+        """E50: secant of q at half its (smoothed) peak, for comparison with the fitted E (of an
+        interrupted curve, like its peak: of the curve so far)."""
         q = self.deviator
-        if len(q) < 5 or not self.passed_fit_window:
+        if len(q) < 5:
             return float("nan")
         half = 0.5 * np.convolve(q, np.ones(5) / 5, mode="valid").max()
         k = int(np.argmax(q >= half))

@@ -30,9 +30,9 @@ MAX_OVERLAP = 0.1  # the largest mean contact overlap a compaction may ask for, 
 
 
 HUANG_GRAINS, HUANG_SIDE = 1395, 1.25e-3  # the shipped sample: discs, nominal box side [m]
-# Nominal solid fractions n <pi r^2> / side^2 that the seeding and the servo were measured to
-# turn into a sample (150 discs, 0.2 to 2.0; the shipped 0.857); at 3 the shrunk discs no longer
-# fit the box, and far below 0.5 a large sample's walls have further to go than the cycles allow.
+# Nominal solid fractions n <pi r^2> / side^2 allowed: 150 discs were compacted from 0.2 to 2.0
+# and 1395 at both 0.5 and 1.5 (the shipped sample is 0.857). At 3 the shrunk discs no longer fit
+# the box; far below 0.5 a large sample's walls have further to go than the cycles allow.
 NOMINAL_SOLID_FRACTION = (0.5, 1.5)
 
 
@@ -237,8 +237,9 @@ def write_packing(args) -> int:
     from ..rundir import replaced_atomically
 
     check_confining_stress("--stress", [args.stress], args.contact_stiffness)
+    if args.size is not None:  # the default, nominal_side, is the shipped sample's 0.857
+        check_nominal_side("--size", args.n, args.size)
     size = nominal_side(args.n) if args.size is None else args.size
-    check_nominal_side("--size" if args.size is not None else "--n", args.n, size)
     t0 = time.perf_counter()
     bar = None if args.quiet else CompactionBar()
     try:

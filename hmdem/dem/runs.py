@@ -62,7 +62,8 @@ def permeability_sweep(stresses=STRESSES, n: int = 1395, seed: int = 0, *, size:
                        compaction_progress=None) -> list[PackingPermeability]:
     """Compact the sample (same seed, hence the same initial seeding) to each confining stress
     with :func:`hmdem.dem.compaction.compact_sample` (nominal box side ``size``, default
-    :func:`~hmdem.dem.compaction.nominal_side`) and return the permeability at each. ``progress(k, stress, result)`` is called after each stress, ``compaction_progress`` is
+    :func:`~hmdem.dem.compaction.nominal_side`) and return the permeability at each.
+    ``progress(k, stress, result)`` is called after each stress, ``compaction_progress`` is
     :func:`compact_sample`'s ``progress(cycles, wall_stresses)``."""
     size = nominal_side(n) if size is None else size
     out = []

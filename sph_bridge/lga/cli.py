@@ -223,9 +223,10 @@ def warn_imprecise(command: str, channels) -> None:
     for name, channel in channels:
         missed = [r for r in channel.results if not r.interrupted and not r.precise]
         if missed:
-            worst = max(r.relative_error for r in missed)
+            errors = [r.relative_error for r in missed if np.isfinite(r.relative_error)]
+            known = f"{max(errors):.2%}" if errors else "an unknown error"
             print(f"lga {command}: warning: {len(missed)} of {len(channel.results)} drives of {name} ended at their "
-                  f"longest averaging window with Q known to {worst:.2%}, not {missed[0].precision:.0%} "
+                  f"longest averaging window with Q known to {known}, not {missed[0].precision:.0%} "
                   f"(\"precise\": false in summary.json; --steps N fixes a longer window)", file=sys.stderr)
 
 
@@ -254,7 +255,8 @@ def run_poiseuille(args) -> int:
         summary.update(studies.poiseuille_summary(channel))
         summary["force_mismatch_max"] = max(abs(r.force_mismatch) for r in done)
         summary["u_max"] = max(r.u_max for r in done)
-        if not (summary["viscosity_fit"] > 0 and summary["profile_r2"] >= MIN_PROFILE_R2):
+        swamped = not (summary["viscosity_fit"] > 0 and summary["profile_r2"] >= MIN_PROFILE_R2)
+        if swamped and status == "finished":  # an interrupted run's last window may just be short
             print(f"lga poiseuille: warning: the flow is lost in the lattice's noise (nu from the slope "
                   f"{summary['viscosity_fit']:.4g}, parabola R^2 {summary['profile_r2']:.3f}): drive harder (--g) or "
                   "average longer (--steps)", file=sys.stderr)
@@ -462,11 +464,12 @@ def run_nonlinear(args) -> int:
     warn_imprecise(args.command, (("rough", rough), ("smooth", smooth)))
     series = {name: ch.rows() for name, ch in (("rough", rough), ("smooth", smooth)) if ch.results}
     for name, rows in series.items():
-        fastest = max(rows, key=lambda r: r["u_max"])
-        if fastest["u_max"] > MACH_LIMIT:  # the ladder's later rungs keep under it; a first one may not
-            print(f"lga nonlinear: warning: the {name} channel's drive at Re = {fastest['reynolds']:.0f} reached "
-                  f"u_max = {fastest['u_max']:.3f}, past the seed's {MACH_LIMIT} (C17): too narrow a channel for "
-                  f"the ladder's Re {NONLINEAR_REYNOLDS[0]} first rung (a larger --ny widens it)", file=sys.stderr)
+        k = max(range(len(rows)), key=lambda i: rows[i]["u_max"])
+        if rows[k]["u_max"] > MACH_LIMIT:  # later rungs aim under it; the first, at Re 20, is not aimed
+            why = (f": too narrow a channel for the first rung, Re {NONLINEAR_REYNOLDS[0]} (a larger --ny widens it)"
+                   if k == 0 else f": the rung overshot its aim, u_max {MACH_AIM:.3f}")
+            print(f"lga nonlinear: warning: the {name} channel's drive at Re = {rows[k]['reynolds']:.0f} reached "
+                  f"u_max = {rows[k]['u_max']:.3f}, past the seed's {MACH_LIMIT} (C17){why}", file=sys.stderr)
     summary = {"reynolds_definition": "Re = Q_full / nu (Eq. 6)", "mach_limit": MACH_LIMIT,
                "rough_opening": studies.opening(rough), "smooth_width": smooth.aperture, "series": series}
     for name, rows in series.items():
@@ -529,8 +532,10 @@ def reynolds_ladder(args, name, channel, plan, bar) -> None:
         rung = studies.next_rung(channel.rows(), NONLINEAR_REYNOLDS[k + 1], MACH_AIM)
         if rung is None:
             last = channel.rows()[-1]
-            print(f"lga nonlinear: {name} ladder stops at Re = {last['reynolds']:.0f} (its u_max, "
-                  f"{last['u_max']:.3f}, is within 2 % of the aim {MACH_AIM:.3f} or past it)")
+            why = (f"its u_max, {last['u_max']:.3f}, is within 2 % of the aim {MACH_AIM:.3f} or past it"
+                   if last["reynolds"] * MACH_AIM / last["u_max"] <= 1.02 * last["reynolds"]
+                   else f"it is already within 2 % of the next aim, Re {NONLINEAR_REYNOLDS[k + 1]}, or past it")
+            print(f"lga nonlinear: {name} ladder stops at Re = {last['reynolds']:.0f} ({why})")
             break
         g, aim = rung
         if aim < NONLINEAR_REYNOLDS[k + 1]:

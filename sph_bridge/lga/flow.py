@@ -54,12 +54,7 @@ class FlowResult:
     fields: Fields | None = field(default=None, repr=False)
     interrupted: bool = False
     precision: float = 0.0  # the relative standard error of Q the window aimed at; 0: a fixed window
-
-    @property
-    def precise(self) -> bool:
-        """Whether Q reached ``precision`` (a fixed window's always does): a window may end at its
-        longest allowed length first."""
-        return self.precision <= 0 or bool(self.relative_error <= self.precision)
+    precise: bool = True  # the window's own test (:func:`precise`) passed: it may end at its longest first
 
     @property
     def steady(self) -> bool:
@@ -166,7 +161,7 @@ def drive(lattice: Lattice, g: float, spinup: int, average: int, progress=None, 
     record.flush()
     result = _result(lattice, g, spinup, averaged, flow_rates, row_counts, row_momentum, samples, node_fields,
                      stopped)
-    result.precision = precision
+    result.precision, result.precise = precision, precise(flow_rates, precision)
     return result
 
 
@@ -201,7 +196,7 @@ class _Recorder:
 
 def precise(flow_rates: list, precision: float) -> bool:
     q = np.asarray(flow_rates)
-    return precision <= 0 or (len(q) >= 20 and block_error(q) <= precision * abs(q.mean()))
+    return precision <= 0 or bool(len(q) >= 20 and block_error(q) <= precision * abs(q.mean()))
 
 
 def _result(lattice, g, spinup, averaged, flow_rates, row_counts, row_momentum, samples, node_fields,
