@@ -569,6 +569,8 @@ def run_calibrate(args) -> int:
                 what = f"theta = {trial.measured:.2f}°"
                 if len(trial.ridge_angles_deg) > 1:
                     what += " (ridges: " + ", ".join(f"{a:.2f}°" for a in trial.ridge_angles_deg) + ")"
+                if trial.ridges_unsettled > 0:
+                    what += f", {trial.ridges_unsettled:.0f} ridge(s) not settled"
             print(f"  {trial.stage}: s_ff = {trial.s_ff:.4g} N, s_sf = {trial.s_sf:.4g} N, rho0 = "
                   f"{trial.rho0_fluid:.1f}: {what} ({trial.steps} steps, {time.perf_counter() - start:.0f} s)",
                   flush=True)
@@ -599,14 +601,22 @@ def run_calibrate(args) -> int:
                "steps": sum(t.steps for t in cal.trials), "wall_time_s": time.perf_counter() - start}
     if error:
         summary["error"] = error
+    # the angle found is the last contact-angle trial's: did its ridges settle (null: not recorded)?
+    angle_trials = [t for t in cal.trials if t.stage == "contact_angle"]
+    unsettled = angle_trials[-1].ridges_unsettled if angle_trials else 0
+    summary["ridges_settled"] = None if math.isnan(unsettled) else bool(unsettled == 0)
+    if status == "finished" and unsettled > 0:
+        print(f"calibrate: warning: {unsettled:.0f} of the last trial's {len(args.ridge_sizes)} ridge(s) had not "
+              f"settled by {droplet.MAX_EXTENSION} times their minimum relaxation: its angle, and so s_sf, is of a "
+              "ridge still moving", file=sys.stderr)
     config = {"run": run_table(PROG, args.argv, "calibrate"), "targets": targets}
     with atomic_run_directory(out) as tmp:
         write_toml(tmp / "config.toml", config)
         write_json(tmp / "summary.json", summary)
         columns = ("stage", "s_ff_n", "s_sf_n", "rho0_fluid", "measured", "bulk_density_kg_per_m3", "steps",
-                   "ridge_angles_deg")
+                   "ridge_angles_deg", "ridges_unsettled")
         rows = [(t.stage, t.s_ff, t.s_sf, t.rho0_fluid, t.measured, t.bulk_density, t.steps,
-                 " ".join(f"{a:.3f}" for a in t.ridge_angles_deg)) for t in cal.trials]
+                 " ".join(f"{a:.3f}" for a in t.ridge_angles_deg), t.ridges_unsettled) for t in cal.trials]
         write_rows(tmp / "timeseries.csv", columns, rows)
     # a stage not finished has found nothing yet (its values are null in summary.json)
     found = [f"after {len(cal.trials)} trial(s)"]

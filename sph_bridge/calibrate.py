@@ -55,6 +55,7 @@ class Trial:
     bulk_density: float  # kg/m^3 (slab trials; nan for drops)
     steps: int
     ridge_angles_deg: tuple = ()  # each ridge's angle (contact-angle trials; ``measured`` is their mean)
+    ridges_unsettled: float = 0  # of those ridges, how many had not settled by their longest relaxation (NaN: unknown)
 
 
 @dataclass
@@ -95,25 +96,28 @@ def zero_gravity_drop(params: SphParameters, surface_tension: float, progress=No
     cylinder of ``radius_cells`` dx radius at zero gravity, and the steps taken. A ridge's contact
     line is straight: its angle is Young's, while a round drop this small (~7 dx tall) stands
     ~10° steeper at dx = 5e-4 m (decisions #39). ``progress``: as :func:`slab_tension`'s, told
-    the relaxation's minimum duration and how far each further settle check extends it."""
+    the relaxation's minimum duration and how far each further settle check extends it. Also
+    returns whether its height settled (:func:`sph_bridge.droplet.relax`)."""
     volume = droplet.ridge_volume(radius_cells, params.dx)
     sim, t_min = droplet.prepare_drop(replace(params, gravity=(0.0, 0.0, 0.0)), volume, surface_tension, ridge=True)
     advance = None
     if progress is not None:
         advance = progress(f"ridge of {radius_cells} dx", *droplet.relaxation_span(t_min, params.anneal > 0))
-    shape, _ = droplet.relax(sim, t_min, ridge=True, progress=advance)
-    return shape, sim.record.steps
+    shape, settled = droplet.relax(sim, t_min, ridge=True, progress=advance)
+    return shape, sim.record.steps, settled
 
 
 def ridge_angles(params: SphParameters, surface_tension: float, radius_cells: tuple[int, ...],
-                 progress=None) -> tuple[tuple, int]:
-    """Cap angles [deg] of zero-gravity ridges of the given starting radii, and their steps."""
-    angles, steps = [], 0
+                 progress=None) -> tuple[tuple, int, int]:
+    """Cap angles [deg] of zero-gravity ridges of the given starting radii, their steps and how
+    many of them had not settled."""
+    angles, steps, unsettled = [], 0, 0
     for n in radius_cells:
-        shape, ridge_steps = zero_gravity_drop(params, surface_tension, progress=progress, radius_cells=n)
+        shape, ridge_steps, settled = zero_gravity_drop(params, surface_tension, progress=progress, radius_cells=n)
         angles.append(shape.contact_angle_deg)
         steps += ridge_steps
-    return tuple(angles), steps
+        unsettled += not settled
+    return tuple(angles), steps, unsettled
 
 
 def protocol() -> dict:
@@ -172,7 +176,7 @@ def search(cal: Calibration, dx: float, theta_deg: float, target_tension: float,
 
     def trial(stage, s_ff, s_sf, rho0, measure):
         """The trial at these strengths: the next replayed one, or ``measure()``'s (measured,
-        bulk density, steps, ridge angles)."""
+        bulk density, steps[, ridge angles, ridges unsettled])."""
         k = len(cal.trials)
         if k < len(replay):
             done = replay[k]
@@ -221,8 +225,9 @@ def search(cal: Calibration, dx: float, theta_deg: float, target_tension: float,
     s_sf, history = droplet.pairwise_young_s_sf(cal.s_ff, theta_deg), []
 
     def ridges():  # at the current s_sf
-        angles, steps = ridge_angles(cal.parameters(s_sf=s_sf), cal.surface_tension, ridge_sizes, progress)
-        return float(np.mean(angles)), math.nan, steps, angles
+        angles, steps, unsettled = ridge_angles(cal.parameters(s_sf=s_sf), cal.surface_tension, ridge_sizes,
+                                                progress)
+        return float(np.mean(angles)), math.nan, steps, angles, unsettled
 
     for _ in range(MAX_TRIALS):
         angle = trial("contact_angle", cal.s_ff, s_sf, cal.rho0_fluid, ridges).measured

@@ -201,7 +201,9 @@ def restore_trials(directory: Path, targets: dict) -> list:
         return []
     try:
         saved = json.loads(path.read_text())
-        trials = [Trial(**{k: unsafe(v) for k, v in t.items()}) for t in saved["trials"]]
+        # trials saved before ridges_unsettled was recorded: unknown (NaN), not "all settled"
+        trials = [Trial(**{k: unsafe(v) for k, v in {"ridges_unsettled": None, **t}.items()})
+                  for t in saved["trials"]]
         stored = saved["targets"]
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise CheckpointError(f"{str(path)!r} cannot be read ({exc.__class__.__name__}: {exc})") from None

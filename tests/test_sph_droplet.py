@@ -509,7 +509,7 @@ def stand_in_calibration_trials(monkeypatch, measured=None):
             measured("contact_angle")
         cos_theta = min(1.0, -1.0 + 1.9 * params.s_sf / params.s_ff)
         theta = math.degrees(math.acos(cos_theta))
-        return droplet.DropShape(1e-3, 3e-3, theta, theta, 2e-3, 0.0, 1e-5), 3500
+        return droplet.DropShape(1e-3, 3e-3, theta, theta, 2e-3, 0.0, 1e-5), 3500, True
 
     monkeypatch.setattr(signal, "signal", lambda *args: None)  # the CLI's SIGTERM handler stays out of pytest
     monkeypatch.setattr(cal_mod, "slab_tension", slab)
@@ -619,15 +619,39 @@ def test_a_calibration_that_found_no_cap_resumes_to_the_same_end(monkeypatch, tm
     from sph_bridge import calibrate as cal_mod
 
     stand_in_calibration_trials(monkeypatch)
-    monkeypatch.setattr(cal_mod, "zero_gravity_drop", lambda *a, **k: (droplet.DropShape(*[math.nan] * 7), 10))
+    monkeypatch.setattr(cal_mod, "zero_gravity_drop", lambda *a, **k: (droplet.DropShape(*[math.nan] * 7), 10, True))
     ends = []
     for name in ("first", "again"):
         out = tmp_path / name
         assert cli.main(["calibrate", "--quiet", "--out", str(out), "--checkpoint", str(tmp_path / "ck")]) == 1
         ends.append(json.loads((out / "summary.json").read_text()))
-        assert (out / "timeseries.csv").read_text().splitlines()[-1].endswith(",nan")
+        assert (out / "timeseries.csv").read_text().splitlines()[-1].endswith(",nan,0")  # angle; ridges unsettled
     assert ends[0]["status"] == ends[1]["status"] == "not_converged" and "no measurable cap" in ends[1]["error"]
     assert ends[1]["replayed_trials"] == ends[0]["trials"] == ends[1]["trials"]
+
+
+def test_a_calibration_whose_ridge_did_not_settle_says_so(monkeypatch, tmp_path, capsys):
+    # left from earlier sessions: a contact-angle trial took its ridge's angle whether or not the
+    # ridge had settled, and a calibration from a ridge still moving read as sound
+    from sph_bridge import __main__ as cli
+    from sph_bridge import calibrate as cal_mod
+
+    stand_in_calibration_trials(monkeypatch)
+    settled_drop = cal_mod.zero_gravity_drop
+    monkeypatch.setattr(cal_mod, "zero_gravity_drop", lambda *a, **k: (*settled_drop(*a, **k)[:2], False))
+    out = tmp_path / "cal"
+    assert cli.main(["calibrate", "--quiet", "--out", str(out), "--checkpoint", str(tmp_path / "ck")]) == 0
+    assert "1 of the last trial's 1 ridge(s) had not settled" in capsys.readouterr().err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "finished" and summary["ridges_settled"] is False
+    # trials saved before the count was kept replay as unknown, not as settled
+    saved = json.loads((tmp_path / "ck" / "trials.json").read_text())
+    for t in saved["trials"]:
+        del t["ridges_unsettled"]
+    (tmp_path / "ck" / "trials.json").write_text(json.dumps(saved))
+    assert cli.main(["calibrate", "--quiet", "--out", str(tmp_path / "again"), "--checkpoint",
+                     str(tmp_path / "ck")]) == 0
+    assert json.loads((tmp_path / "again" / "summary.json").read_text())["ridges_settled"] is None
 
 
 def test_calibration_sets_the_mean_angle_of_several_ridges(monkeypatch):
@@ -643,7 +667,7 @@ def test_calibration_sets_the_mean_angle_of_several_ridges(monkeypatch):
     def drop(params, sigma, progress=None, radius_cells=cal_mod.DROP_RADIUS_CELLS):
         asked.append(radius_cells)
         theta = math.degrees(math.acos(min(1.0, -1.0 + 2.0 * params.s_sf / params.s_ff))) + offsets[radius_cells]
-        return droplet.DropShape(1e-3, 3e-3, theta, theta, 2e-3, 0.0, 1e-5), 100
+        return droplet.DropShape(1e-3, 3e-3, theta, theta, 2e-3, 0.0, 1e-5), 100, True
 
     monkeypatch.setattr(cal_mod, "slab_tension", lambda params, progress=None: (0.072, 1000.0, 10))
     monkeypatch.setattr(cal_mod, "zero_gravity_drop", drop)
