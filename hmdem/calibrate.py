@@ -310,7 +310,8 @@ def run_darcy_command(args, argv) -> int:
 
     status = "finished"
     try:
-        permeability_sweep(args.stresses, args.n, args.seed, k_n=args.contact_stiffness, law=law, contact_gap=args.contact_gap, progress=say,
+        permeability_sweep(args.stresses, args.n, args.seed, k_n=args.contact_stiffness, law=law,
+                           contact_gap=args.contact_gap, progress=say,
                            compaction_progress=bar)
     except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the stresses done, and the stored packing (no DEM)
         status = "interrupted"

@@ -200,6 +200,7 @@ def run_channels(args, channel_drives, plan_of) -> str:
                 bar.channel_done()
         except KeyboardInterrupt:
             stopped = True
+    warn_imprecise(args.command, [(name, channel) for name, channel, _ in channel_drives])
     args.timeseries = [(s[0], name, *s[1:]) for (name, _, _), rows in zip(channel_drives, series) for s in rows]
     bar.close(finished=not stopped and not lost)
     args.status_message = "; ".join(lost)
@@ -225,7 +226,7 @@ def warn_imprecise(command: str, channels) -> None:
         if missed:
             errors = [r.relative_error for r in missed if np.isfinite(r.relative_error)]
             known = f"{max(errors):.2%}" if errors else "an unknown error"
-            print(f"lga {command}: warning: {len(missed)} of {len(channel.results)} drives of {name} ended at their "
+            print(f"lga {command}: warning: {len(missed)} of {len(channel.results)} drives of channel {name} ended at their "
                   f"longest averaging window with Q known to {known}, not {missed[0].precision:.0%} "
                   f"(\"precise\": false in summary.json; --steps N fixes a longer window)", file=sys.stderr)
 
@@ -247,7 +248,6 @@ def run_poiseuille(args) -> int:
     status = run_channels(args, [("smooth", channel, forcings)], plan_for(args))
     done = [r for r in channel.results if r.averaging_steps > 0]
     channel.results = done
-    warn_imprecise(args.command, [("the channel", channel)])
     summary = {"geometry": "half channel under a mirror" if args.mirror else "smooth channel",
                "width": channel.aperture, "fluid_rows": args.ny, "length": args.nx,
                "reynolds_definition": "Re = Q_full / nu (Eq. 6)", "drives": channel.rows()}
@@ -321,7 +321,6 @@ def run_rough(args) -> int:
     forcings = rough_forcings(args, channel)
     status = run_channels(args, [("rough", channel, forcings)], plan_for(args))
     channel.results = [r for r in channel.results if r.averaging_steps > 0]
-    warn_imprecise(args.command, [("the channel", channel)])
     rows = channel.rows()
     summary = {"reynolds_definition": "Re = Q_full / nu (Eq. 6)", "mach_limit": MACH_LIMIT}
     if rows:
@@ -376,7 +375,6 @@ def run_permeability(args) -> int:
     points = []
     for name, channel, _ in jobs:
         channel.results = [r for r in channel.results if r.averaging_steps > 0]
-        warn_imprecise(args.command, [(name, channel)])
         if channel.results:
             points.append({"name": name, **rough_row(channel, channel.rows(), targets[name])})
     summary = {"reynolds_definition": "Re = Q_full / nu (Eq. 6)", "points": points}
@@ -463,21 +461,20 @@ def run_nonlinear(args) -> int:
     bar.close(finished=status == "finished")
     warn_imprecise(args.command, (("rough", rough), ("smooth", smooth)))
     series = {name: ch.rows() for name, ch in (("rough", rough), ("smooth", smooth)) if ch.results}
-    for name, rows in series.items():
-        k = max(range(len(rows)), key=lambda i: rows[i]["u_max"])
-        if rows[k]["u_max"] > MACH_LIMIT:  # later rungs aim under it; the first, at Re 20, is not aimed
-            why = (f": too narrow a channel for the first rung, Re {NONLINEAR_REYNOLDS[0]} (a larger --ny widens it)"
-                   if k == 0 else f": the rung overshot its aim, u_max {MACH_AIM:.3f}")
-            print(f"lga nonlinear: warning: the {name} channel's drive at Re = {rows[k]['reynolds']:.0f} reached "
-                  f"u_max = {rows[k]['u_max']:.3f}, past the seed's {MACH_LIMIT} (C17){why}", file=sys.stderr)
     summary = {"reynolds_definition": "Re = Q_full / nu (Eq. 6)", "mach_limit": MACH_LIMIT,
                "rough_opening": studies.opening(rough), "smooth_width": smooth.aperture, "series": series}
     for name, rows in series.items():
         resistance = [r["pressure_drop_per_length"] / r["flow_rate_full"] for r in rows]
         summary[f"{name}_drag_increase"] = max(resistance) / resistance[0] - 1.0
         summary[f"{name}_reynolds_range"] = [rows[0]["reynolds"], rows[-1]["reynolds"]]
-        summary[f"{name}_u_max"] = max(r["u_max"] for r in rows)
-        summary[f"{name}_within_mach_limit"] = summary[f"{name}_u_max"] <= MACH_LIMIT
+        k = max(range(len(rows)), key=lambda i: rows[i]["u_max"])
+        summary[f"{name}_u_max"] = rows[k]["u_max"]
+        summary[f"{name}_within_mach_limit"] = rows[k]["u_max"] <= MACH_LIMIT
+        if rows[k]["u_max"] > MACH_LIMIT:  # later rungs aim under it; the first, at Re 20, is not aimed
+            why = (f": too narrow a channel for the first rung, Re {NONLINEAR_REYNOLDS[0]} (a larger --ny widens it)"
+                   if k == 0 else f": the rung overshot its aim, u_max {MACH_AIM:.3f}")
+            print(f"lga nonlinear: warning: the {name} channel's drive at Re = {rows[k]['reynolds']:.0f} reached "
+                  f"u_max = {rows[k]['u_max']:.3f}, past the seed's {MACH_LIMIT} (C17){why}", file=sys.stderr)
     summary = finish(args, status, started, summary)
 
     def write(tmp):
@@ -533,7 +530,7 @@ def reynolds_ladder(args, name, channel, plan, bar) -> None:
         if rung is None:
             last = channel.rows()[-1]
             why = (f"its u_max, {last['u_max']:.3f}, is within 2 % of the aim {MACH_AIM:.3f} or past it"
-                   if last["reynolds"] * MACH_AIM / last["u_max"] <= 1.02 * last["reynolds"]
+                   if last["u_max"] >= MACH_AIM / 1.02  # next_rung's bound on the Re the limit allows
                    else f"it is already within 2 % of the next aim, Re {NONLINEAR_REYNOLDS[k + 1]}, or past it")
             print(f"lga nonlinear: {name} ladder stops at Re = {last['reynolds']:.0f} ({why})")
             break
