@@ -83,6 +83,27 @@ def test_breakthrough_time_ratio_a1_a3(huang):
     assert 15.0 <= ratio <= 25.0  # H6: 20 +- 5, the injection velocity ratio
 
 
+# Table 4's t_f, the time each case ran to, its breakthrough (Fig. 13 is drawn there)
+PAPER_BREAKTHROUGH_S = {"A1": 3.0e-2, "A3": 1.5e-3, "B1": 2.5e-2, "B3": 3.5e-4}
+
+
+@pytest.mark.parametrize("case", [
+    "A1", "A3", "B1",
+    pytest.param("B3", marks=pytest.mark.xfail(
+        strict=True, reason="known model discrepancy, issue 3 open: B3 breaks through at 6.3e-4 to 1.15e-3 s "
+        "(8.07e-4 on 2026-11-30), 1.8-3.3x the paper's 3.5e-4. B3 injects at A3's rate (Ca* x viscosity is the "
+        "same to 0.1 %), and the paper's B3 reaches the outlets with 4.3x less fluid than its A3, ours with "
+        "2.1x less: its fractures open 0.4-6 um where the paper's conduct as if ~18 um (H8, BENCHMARKS.md)")),
+])
+def test_breakthrough_time_within_40_percent_of_the_papers(huang, case):
+    # H6: Table 4's times, +-40 % (digest §13.3). Measured 2026-11-30 at paper size: A1 3.43e-2 s
+    # (+14 %), A3 1.715e-3 (+14 %), B1 3.46e-2 (+38 %; 3.459-3.474e-2 over eight runs since
+    # 2026-11-27, BENCHMARKS.md), B3 8.07e-4 (+131 %)
+    s = huang(case)[0]
+    assert s["status"] == "breakthrough"
+    assert s["breakthrough_time_s"] == pytest.approx(PAPER_BREAKTHROUGH_S[case], rel=0.4)
+
+
 def test_a3_fractures_near_the_port(huang):
     s, _ = huang("A3")
     assert s["status"] == "breakthrough"
