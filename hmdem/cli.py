@@ -305,9 +305,9 @@ def exists(path: Path) -> bool:
         raise InputError(f"--out: {str(path)!r} cannot be reached (permission denied)") from None
 
 
-def read_packing(path: Path):
+def read_packing(path: Path, maker: str = "python -m hmdem.dem.packing or hmdem.dem.compaction"):
     """The ``--packing`` file as a :class:`~hmdem.network.packing.DiscPacking`; a missing or
-    unreadable file is an :class:`InputError`."""
+    unreadable file is an :class:`InputError` (``maker``: the command its message suggests)."""
     from .network.contact_graph import ContactsOffTriangulation, check_packing_contacts
     from .network.packing import DiscPacking
 
@@ -319,7 +319,7 @@ def read_packing(path: Path):
         packing = DiscPacking.load(path)
     except KeyError:  # an npz of something else, e.g. a run directory's state.npz
         raise InputError(f"--packing: {str(path)!r} is not a packing (one holds centres, radii, contacts, box, "
-                         "seed); write one with python -m hmdem.dem.packing or hmdem.dem.compaction") from None
+                         f"seed); write one with {maker}") from None
     except Exception as exc:  # not an npz at all
         raise InputError(f"--packing: cannot read a packing from {str(path)!r} ({type(exc).__name__})") from None
     try:  # the near contacts a run adds are checked where its network is built (ContactsOffTriangulation)
@@ -332,7 +332,7 @@ def read_packing(path: Path):
 def read_compacted_packing(path: Path):
     """:func:`read_packing`, refusing a packing no servo compacted: Eqs. 13-14 open the Huang
     sample's apertures from the contact forces a compacted sample carries (its confining stress)."""
-    packing = read_packing(path)
+    packing = read_packing(path, maker="python -m hmdem.dem.compaction")
     if not packing.confining_stress > 0:
         raise InputError(f"--packing: {str(path)!r} records no confining stress, so it is not a "
                          "compacted sample; make one with python -m hmdem.dem.compaction")

@@ -57,7 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=__version__)
     sub = parser.add_subparsers(dest="command", parser_class=_Parser)
     lin = sub.add_parser("linear", help="fixed-grain cases of seed 004 §4.1 and App. D")
-    lin.add_argument("--case", choices=CASE_NAMES, default="vf", help="vf, cf1, sd, cf2 (Lenormand), chen, darcy")
+    lin.add_argument("--case", choices=CASE_NAMES, default="vf", help="vf, cf1, sd, cf2 (Lenormand), chen, darcy (default vf)")
     rate = lin.add_mutually_exclusive_group()
     rate.add_argument("--ca-star", type=modified_capillary_number,
                       help="modified capillary number Ca* (seed 004 Eq. 24), in [1e-10, 1e4]")
@@ -75,7 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_run_options(lin, "the shipped 65 mm packing")
 
     rad = sub.add_parser("radial", help="movable-grain Huang cases of seed 004 §4.2 (YADE)")
-    rad.add_argument("--case", choices=RADIAL_NAMES, default="A1", help="A1, A3 (5 cP), B1, B3 (176 cP)")
+    rad.add_argument("--case", choices=RADIAL_NAMES, default="A1", help="A1, A3 (5 cP), B1, B3 (176 cP) (default A1)")
     rad.add_argument("--viscosity-ratio", type=viscosity_ratio,
                      help="M = eta_inv / eta_air in [1e-6, 1e6]; eta_inv = M x 0.018 cP")
     rad.add_argument("--ca-star", type=modified_capillary_number,
@@ -139,7 +139,7 @@ def build_parser() -> argparse.ArgumentParser:
                           "(hmdem/coupling/replica.py, decisions #65; default on); --no-replica evaluates every "
                           "iteration in YADE")
     rad.add_argument("--damping", type=local_damping,
-                     help="YADE local damping of the grains during the run, in [0, 1) (default 0.7, PFC's; the "
+                     help="YADE local damping of the grains during the run, in [0, 1) (default 0.7, PFC2D's; the "
                           "seed does not state it; the sample settles at 0.7 either way)")
     rad.add_argument("--threads", type=positive_int,
                      help="OpenMP threads of the DEM (YADE): 2 runs its cycles up to 1.7x faster on 2 cores but "
