@@ -76,9 +76,21 @@ class _Parser(OneLineParser):
 
 
 angle = number_in("a contact angle in (0, 180) degrees", lambda v: 0 < v < 180)
-# at 1e300 m/s the equation of state's c0^2 overflowed and the drop came out as NaN
+
+
+def sound_speed_allowed(c0: float) -> bool:
+    """A speed of sound up to water's own (at 1e300 m/s the equation of state's c0^2 overflowed
+    and the drop came out as NaN)."""
+    return 0 < c0 <= WATER_SOUND_SPEED
+
+
+def strongest_pair(dx: float) -> float:
+    """The largest pairwise strength [N] allowed at particle spacing ``dx``."""
+    return MAX_STRENGTH_PER_DX * dx
+
+
 sound_speed_value = number_in(f"a speed of sound in (0, {WATER_SOUND_SPEED:g}] m/s, water's own at most",
-                              lambda v: 0 < v <= WATER_SOUND_SPEED)
+                              sound_speed_allowed)
 
 
 def build_parser() -> OneLineParser:
@@ -262,7 +274,7 @@ def droplet_parameters(args):
     if (args.s_ff is None) != (args.s_sf is None):
         raise InputError("--s-ff and --s-sf: give both strengths or neither")
     if args.s_ff is not None:
-        strongest = MAX_STRENGTH_PER_DX * args.dx
+        strongest = strongest_pair(args.dx)
         for flag, value in (("--s-ff", args.s_ff), ("--s-sf", args.s_sf)):
             if value > strongest:
                 raise InputError(f"{flag}: must be at most {strongest:g} N at dx = {args.dx:g} m "
@@ -289,8 +301,8 @@ def droplet_parameters(args):
             anneal = float(cal.get("anneal_m_per_s", 0.0))  # older calibrations were damped
             if not all(map(math.isfinite, [*values.values(), anneal])):
                 raise ValueError("it records a value that is not finite")
-            if not (0 < values["c0_m_per_s"] <= WATER_SOUND_SPEED
-                    and max(values["s_ff_n"], values["s_sf_n"]) <= MAX_STRENGTH_PER_DX * values["dx_m"]):
+            if not (sound_speed_allowed(values["c0_m_per_s"])
+                    and max(values["s_ff_n"], values["s_sf_n"]) <= strongest_pair(values["dx_m"])):
                 raise ValueError("its c0 or strengths are beyond what --c0, --s-ff and --s-sf allow")
         except (OSError, ValueError, KeyError, TypeError) as exc:
             raise InputError(f"--calibration: {str(args.calibration)!r} is not a finished calibrate run "

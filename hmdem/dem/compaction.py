@@ -237,9 +237,11 @@ def write_packing(args) -> int:
     from ..rundir import replaced_atomically
 
     check_confining_stress("--stress", [args.stress], args.contact_stiffness)
-    if args.size is not None:  # the default, nominal_side, is the shipped sample's 0.857
+    if args.size is None:  # the shipped sample's nominal solid fraction, 0.857
+        size = nominal_side(args.n)
+    else:
         check_nominal_side("--size", args.n, args.size)
-    size = nominal_side(args.n) if args.size is None else args.size
+        size = args.size
     t0 = time.perf_counter()
     bar = None if args.quiet else CompactionBar()
     try:
