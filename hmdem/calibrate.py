@@ -158,8 +158,10 @@ def plot_biaxial(path: Path, res, status: str) -> None:
     a1.set_xlabel("axial strain [%]")
     a1.set_ylabel("stress [kPa]")
     a1.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)  # below: no curve hidden
-    a1.set_title(f"biaxial test, {res.n_grains} discs, sigma3 = {res.sigma3_target / 1e3:g} kPa"
-                 f"{stop_note(status, 'finished')}", fontsize=9)
+    stopped = stop_note(status, "finished")
+    if res.interrupted_in == "compaction":
+        stopped = " (stopped in the compaction: no curve)"
+    a1.set_title(f"biaxial test, {res.n_grains} discs, sigma3 = {res.sigma3_target / 1e3:g} kPa{stopped}", fontsize=9)
     a2.plot(ea, 100 * res.strain_volumetric, label="volumetric (area) strain")
     a2.plot(ea, 100 * res.strain_lateral, label="lateral strain")
     nu_label = (f"nu fit: nu = {res.poisson_ratio:.3f} (paper 0.102)" if math.isfinite(res.poisson_ratio)
@@ -190,7 +192,7 @@ def run_biaxial_command(args, argv) -> int:
     out = new_run_directory(args.out, args.command)
     t0 = time.perf_counter()
     bar = None if args.quiet else _BiaxialProgress(args.max_strain)
-    try:  # an interrupt in the compaction leaves no results; one in the loading returns the curve so far
+    try:  # an interrupt returns what is done: no curve in the compaction, the curve so far in the loading
         res = run_biaxial(args.n, args.sigma3, args.strain_rate, args.seed, args.max_strain,
                           k_n=args.contact_stiffness, ks_over_kn=args.stiffness_ratio, friction=args.friction,
                           progress=None if bar is None else bar.load,
@@ -208,6 +210,8 @@ def run_biaxial_command(args, argv) -> int:
             if bar is not None:
                 bar.close()
         summary["status"] = half.status
+        if half.status == "interrupted":
+            summary["interrupted_in"] = "rate check"
         summary["rate_check"] = {"status": half.status, "strain_rate_per_s": half.strain_rate,
                                  "max_axial_strain": float(half.strain_axial[-1]) if len(half.strain_axial) else 0.0,
                                  "loading_seconds": half.loading_seconds}
@@ -233,7 +237,10 @@ def run_biaxial_command(args, argv) -> int:
                            res.sigma1, res.sigma3, res.deviator):
                 w.writerow([int(row[0])] + [f"{v:.9g}" for v in row[1:]])
         plot_biaxial(tmp / "biaxial.png", res, res.status)  # the full-rate curve's own status
-    if res.status == "interrupted":
+    if res.interrupted_in == "compaction":
+        print(f"{PROG}: interrupted in the compaction to sigma3, before the loading: {out} holds the settings "
+              f"and no curve", file=sys.stderr)
+    elif res.status == "interrupted":
         print(f"{PROG}: interrupted in the loading at axial strain {summary['max_axial_strain']:.3%}; the curve so "
               f"far and what it gives (NaN where it did not get far enough) are in {out}", file=sys.stderr)
     elif summary["status"] == "interrupted":
@@ -245,7 +252,8 @@ def run_biaxial_command(args, argv) -> int:
           f"{against('nu', res.poisson_ratio, '.3f', '', err['poisson_ratio'], 0.102)}, "
           f"{against('peak sigma1', res.peak_sigma1 / 1e3, '.1f', ' kPa', err['peak_sigma1_pa'], 309.6)}, "
           f"{against('phi', res.friction_angle, '.2f', ' deg', err['friction_angle_deg'], 30.8)}; "
-          f"max |sigma3 - target| = {res.max_sigma3_deviation:.2%}")
+          f"max |sigma3 - target| = "
+          f"{f'{res.max_sigma3_deviation:.2%}' if math.isfinite(res.max_sigma3_deviation) else 'n/a'}")
     if "peak_relative_change" in summary.get("rate_check", {}):
         print(f"half strain rate: peak sigma1 changes by {summary['rate_check']['peak_relative_change']:+.2%}")
     print(f"run directory: {out} ({summary['wall_seconds']:.0f} s)")

@@ -278,7 +278,8 @@ def _loading(max_strain, status):
     ea = np.linspace(0.0, max_strain, n)
     res = biaxial.BiaxialResult(np.arange(n), 1e-6 * np.arange(n), ea, -0.2 * ea, 0.8 * ea,
                                 1e5 + 5e7 * ea - 1e9 * ea**2, np.full(n, 1e5), sigma3_target=1e5, strain_rate=5.0,
-                                fit_strain=biaxial.FIT_STRAIN, status=status)
+                                fit_strain=biaxial.FIT_STRAIN, status=status,
+                                interrupted_in="loading" if status == "interrupted" else None)
     res.derive_constants()
     return res
 
@@ -294,10 +295,34 @@ def test_interrupted_biaxial_writes_the_curve_so_far(tmp_path, monkeypatch, caps
     assert "interrupted in the loading at axial strain 0.400%" in capsys.readouterr().err
     s = json.loads((out / "summary.json").read_text())
     assert s["status"] == "interrupted" and "rate_check" not in s  # no second loading after a stop
+    assert s["interrupted_in"] == "loading"
     # least squares of q = 5e7 e - 1e9 e^2 over e uniform in [0, 0.001]: slope 5e7 - 1e9 x 0.001
     assert s["young_modulus_pa"] == pytest.approx(4.9e7, rel=1e-9) and s["poisson_ratio"] == pytest.approx(0.2)
     assert s["max_axial_strain"] == pytest.approx(0.004)
     assert len((out / "timeseries.csv").read_text().splitlines()) == 42
+
+
+def test_biaxial_interrupted_in_the_compaction_writes_a_run_directory_without_a_curve(tmp_path, monkeypatch, capsys):
+    # a new-user rule (Ctrl-C leaves a valid partial run directory): a stop in the compaction,
+    # before any loading, wrote nothing at all; now the run directory holds the settings, an
+    # empty curve and a picture, with status "interrupted", interrupted_in "compaction", exit 130
+    import hmdem.dem.biaxial as biaxial
+
+    def stopped(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(biaxial, "compact_sample", stopped)
+    out = tmp_path / "bi"
+    assert main(["biaxial", "--rate-check", "--out", str(out), "--quiet"]) == 130
+    printed = capsys.readouterr()
+    assert "interrupted in the compaction" in printed.err and "nan" not in printed.out
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "interrupted" and s["interrupted_in"] == "compaction" and "rate_check" not in s
+    assert s["young_modulus_pa"] is None and s["max_axial_strain"] is None and s["n_grains"] == 1395
+    assert s["k_n"] == biaxial.CONTACT_STIFFNESS and s["friction"] == 0.6
+    assert (out / "timeseries.csv").read_text().splitlines() == [
+        "cycles,time_s,axial_strain,lateral_strain,volumetric_strain,sigma1_pa,sigma3_pa,deviator_pa"]
+    assert (out / "biaxial.png").stat().st_size > 0
 
 
 def test_a_curve_stopped_inside_the_fit_window_gives_no_moduli(tmp_path, monkeypatch, capsys):
@@ -335,6 +360,7 @@ def test_interrupted_rate_check_keeps_the_full_rate_test(tmp_path, monkeypatch, 
     assert s["status"] == "interrupted" and s["max_axial_strain"] == pytest.approx(0.025)
     assert s["peak_sigma1_pa"] == pytest.approx(full.peak_sigma1)
     assert s["rate_check"]["status"] == "interrupted" and s["rate_check"]["max_axial_strain"] == pytest.approx(0.004)
+    assert s["interrupted_in"] == "rate check"
     assert "peak_relative_change" not in s["rate_check"]
 
 
@@ -475,6 +501,7 @@ def test_interrupted_loading_keeps_the_curve_and_its_elastic_constants(small_bia
 
     cut = load_biaxial(small_biaxial.packing, strain_rate=20.0, progress=ctrl_c_at)
     assert cut.status == "interrupted" and small_biaxial.status == "finished"
+    assert cut.interrupted_in == "loading" and small_biaxial.interrupted_in is None
     assert 0.005 < cut.strain_axial[-1] < 0.01 and len(cut.sigma1) == len(cut.strain_lateral)
     assert cut.young_modulus == pytest.approx(small_biaxial.young_modulus, rel=1e-9)
     assert cut.poisson_ratio == pytest.approx(small_biaxial.poisson_ratio, rel=1e-9)

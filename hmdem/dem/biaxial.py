@@ -76,6 +76,7 @@ class BiaxialResult:
     settings: dict = field(default_factory=dict)
     packing: DiscPacking | None = None  # the compacted sample the test started from
     status: str = "finished"  # or "interrupted" (Ctrl-C, SIGTERM): the curve up to max_axial_strain
+    interrupted_in: str | None = None  # "compaction" (no curve) or "loading" (the curve so far)
 
     def derive_constants(self) -> None:
         """E and nu (:func:`elastic_constants`), the peak, phi and the sigma3 deviation from the
@@ -115,6 +116,7 @@ class BiaxialResult:
         """Scalars for summary.json, with the paper's targets and the relative errors."""
         out = {
             "status": self.status,
+            "interrupted_in": self.interrupted_in,
             "young_modulus_pa": self.young_modulus,
             "poisson_ratio": self.poisson_ratio,
             "peak_sigma1_pa": self.peak_sigma1,
@@ -296,7 +298,8 @@ def load_biaxial(pk: DiscPacking, sigma3: float = SIGMA3, strain_rate: float = S
     res = BiaxialResult(arr["cycles"], arr["time"], arr["ea"], arr["el"], arr["ev"], arr["s1"], arr["s3"],
                         sigma3_target=sigma3, strain_rate=strain_rate, fit_strain=tuple(fit_strain),
                         n_grains=len(ids), porosity=pk.porosity, box=(w0, h0), timestep=dt,
-                        loading_seconds=loading_seconds, status=status)
+                        loading_seconds=loading_seconds, status=status,
+                        interrupted_in="loading" if status == "interrupted" else None)
     res.derive_constants()
     return res
 
@@ -316,17 +319,24 @@ def run_biaxial(n: int = 1395, sigma3: float = SIGMA3, strain_rate: float = STRA
     :func:`compact_sample`'s ``progress(cycles, wall_stresses)``, ``progress`` that of
     :func:`load_biaxial`."""
     t0 = time.perf_counter()
+    settings = {"seed": seed, "ks_over_kn": ks_over_kn, "friction": friction, "wall_friction": 0.0,
+                "density": density, "r_min": r_min, "r_max": r_max, "damping": 0.7}
     if packing is None:
         if size is None:
             size = nominal_side(n)
-        packing = compact_sample(n, size, r_min, r_max, stress=sigma3, seed=seed, k_n=k_n, density=density,
-                                 progress=compaction_progress)
+        try:
+            packing = compact_sample(n, size, r_min, r_max, stress=sigma3, seed=seed, k_n=k_n, density=density,
+                                     progress=compaction_progress)
+        except KeyboardInterrupt:  # Ctrl-C or SIGTERM before the loading: a result without a curve
+            empty = np.zeros(0)
+            return BiaxialResult(empty, empty, empty, empty, empty, empty, empty, sigma3_target=sigma3,
+                                 strain_rate=strain_rate, fit_strain=tuple(fit_strain), n_grains=n,
+                                 compaction_seconds=time.perf_counter() - t0, status="interrupted",
+                                 interrupted_in="compaction", settings={**settings, "k_n": k_n})
     compaction_seconds = time.perf_counter() - t0
     res = load_biaxial(packing, sigma3, strain_rate, max_strain, friction=friction, ks_over_kn=ks_over_kn,
                        density=density, r_max=r_max, fit_strain=fit_strain, progress=progress)
     res.compaction_seconds = compaction_seconds
     res.packing = packing
-    res.settings = {"seed": seed, "k_n": packing.contact_stiffness, "ks_over_kn": ks_over_kn, "friction": friction,
-                    "wall_friction": 0.0, "density": density, "r_min": r_min, "r_max": r_max, "damping": 0.7,
-                    "compaction_stress_pa": packing.confining_stress}
+    res.settings = {**settings, "k_n": packing.contact_stiffness, "compaction_stress_pa": packing.confining_stress}
     return res
