@@ -16,6 +16,7 @@ import sys
 import time
 from pathlib import Path
 
+from . import rundir
 from .network.packing import CONTACT_STIFFNESS, GRAIN_FRICTION
 from .rundir import RunDirectoryTaken
 
@@ -229,6 +230,7 @@ def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -
     (:class:`~hmdem.rundir.RunDirectoryTaken`); a :class:`CommandFailed` is one line and exit
     status 1. The SIGTERM handler is the command's only:
     the previous one is back when it returns."""
+    written = len(rundir.completed)
     with sigterm_as_interrupt():
         try:
             if args.command in commands:
@@ -240,7 +242,11 @@ def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -
             print(f"{prog}: {exc}", file=sys.stderr)
             return 1
         except KeyboardInterrupt:  # a run's time steps catch their own; this one came outside them
-            print(f"{prog}: interrupted; the results in progress were not written", file=sys.stderr)
+            if len(rundir.completed) > written:  # held while a run directory was written (atomic_run_directory)
+                print(f"{prog}: interrupted; {str(rundir.completed[-1])!r} was written whole before it stopped",
+                      file=sys.stderr)
+            else:
+                print(f"{prog}: interrupted; the results in progress were not written", file=sys.stderr)
             return interrupted_status()
         finally:
             _last_interrupt["signal"] = signal.SIGINT  # the next command starts from Ctrl-C's status
@@ -298,9 +304,13 @@ def check_packing_out(parser: argparse.ArgumentParser, out: Path, overwrite: boo
 
 
 def exists(path: Path) -> bool:
-    """``path.exists()``, with a directory the user may not search as an --out error."""
+    """Whether anything stands at ``path``, a dangling symbolic link too (the finished run could
+    not be renamed onto it: a new-user pass); a directory the user may not search is an --out error."""
     try:
-        return Path(path).exists()
+        Path(path).lstat()
+        return True
+    except (FileNotFoundError, NotADirectoryError):
+        return False
     except PermissionError:
         raise InputError(f"--out: {str(path)!r} cannot be reached (permission denied)") from None
 
@@ -322,11 +332,36 @@ def read_packing(path: Path, maker: str = "python -m hmdem.dem.packing or hmdem.
                          f"seed); write one with {maker}") from None
     except Exception as exc:  # not an npz at all
         raise InputError(f"--packing: cannot read a packing from {str(path)!r} ({type(exc).__name__})") from None
+    check_packing_grains(path, packing)
     try:  # the near contacts a run adds are checked where its network is built (ContactsOffTriangulation)
         check_packing_contacts(packing.centres, packing.contacts)
     except ContactsOffTriangulation as exc:
         raise InputError(f"--packing: {exc}") from None
     return packing
+
+
+def check_packing_grains(path: Path, packing) -> None:
+    """An :class:`InputError` for grains no network can be built on: a packing holds at least 3
+    discs with finite centres and radii > 0, all within its box (widened by a grain diameter,
+    since boundary grains overlap the walls). A new-user pass found NaN centres and a 3-disc
+    file ending in tracebacks, and a negative radius and a box 1e-6 m wide running silently."""
+    import numpy as np
+
+    centres, radii = np.asarray(packing.centres, float), np.asarray(packing.radii, float)
+    name = f"--packing: {str(path)!r}"
+    if radii.ndim != 1 or centres.shape != (len(radii), 2) or len(radii) < 3:
+        raise InputError(f"{name} must hold at least 3 discs, centres (n, 2) and radii (n,); "
+                         f"got centres {centres.shape} and radii {radii.shape}")
+    if not (np.isfinite(centres).all() and np.isfinite(radii).all() and (radii > 0).all()):
+        raise InputError(f"{name} has discs with a non-finite centre or a radius that is not a finite number > 0")
+    width, height = (float(v) for v in packing.box)
+    margin = 2.0 * float(radii.max())
+    if not (math.isfinite(width) and math.isfinite(height) and width > 0 and height > 0) or (
+            centres.min(axis=0) < -margin).any() or centres[:, 0].max() > width + margin \
+            or centres[:, 1].max() > height + margin:
+        raise InputError(f"{name}: its discs must lie within its box (0-{width:g} m x 0-{height:g} m, "
+                         f"give or take a grain diameter); they span x {centres[:, 0].min():g}-{centres[:, 0].max():g} m, "
+                         f"y {centres[:, 1].min():g}-{centres[:, 1].max():g} m")
 
 
 def read_compacted_packing(path: Path):

@@ -22,6 +22,7 @@ from .cli import (InputError, OneLineParser, add_contact_arguments, check_apertu
                   positive_int, positive_number, read_compacted_packing, read_packing, relative_tolerance)
 from .flow.darcy_transient import STEADY_T_D, read_darcy_test
 from .flow.fluids import WEAK_COMPRESSION
+from .interrupts import deferred_interrupts
 from .network.contact_graph import BOUNDARY_HOLDS, NEAR_CONTACT_GAP
 from .network.packing import GRAIN_DENSITY
 from .snapshots import SnapshotRecorder
@@ -241,13 +242,17 @@ class FrontProgress:
 @contextlib.contextmanager
 def near_contacts_checked():
     """The network's near contacts (gap up to the case's contact gap) off the Delaunay
-    triangulation, which the packing file's own check cannot see: one line about --packing."""
+    triangulation, and a network with no inflow or outflow domains, which the packing file's
+    own checks cannot see: one line about --packing."""
+    from .network.boundaries import NoBoundaryDomains
     from .network.contact_graph import ContactsOffTriangulation
 
     try:
         yield
     except ContactsOffTriangulation as exc:
         raise InputError(f"--packing: with its near contacts, {exc}") from None
+    except NoBoundaryDomains as exc:
+        raise InputError(f"--packing: {exc}") from None
 
 
 def recorded_argv(args) -> list[str]:
@@ -285,15 +290,16 @@ def run_linear(args) -> int:
     bar = None if args.quiet else FrontProgress(case.name, sc.setup)
     snapshots = None if args.snapshots is None else SnapshotRecorder(args.snapshots)
     state, rec = model.run(progress=each_step(bar, snapshots))
-    if bar is not None:
-        bar.close(model, state)
-    # read against App. D.1 only when the run went to its end: k is read on the last step's drop
-    darcy = read_darcy_run(sc, rec, state) if case.name == "darcy" and rec.status == "t_max" else None
-    summary = write_run(out, sc, model, state, rec, seed=args.seed, argv=recorded_argv(args),
-                        snapshots=None if snapshots is None else snapshots.taken,
-                        packing=packing,
-                        summary_extra=None if darcy is None else darcy.summary(),
-                        extra_files=darcy.write_figure if darcy is not None and darcy.steady else None)
+    with deferred_interrupts():  # the run is over: a signal now stops the command once it is written
+        if bar is not None:
+            bar.close(model, state)
+        # read against App. D.1 only when the run went to its end: k is read on the last step's drop
+        darcy = read_darcy_run(sc, rec, state) if case.name == "darcy" and rec.status == "t_max" else None
+        summary = write_run(out, sc, model, state, rec, seed=args.seed, argv=recorded_argv(args),
+                            snapshots=None if snapshots is None else snapshots.taken,
+                            packing=packing,
+                            summary_extra=None if darcy is None else darcy.summary(),
+                            extra_files=darcy.write_figure if darcy is not None and darcy.steady else None)
     print(f"{case.name}: {rec.status} at t = {state.t:.4g} s after {rec.steps} steps; regime: {summary['regime']}, "
           f"{dimension_note(summary['fractal_dimension'])}, peak injection pressure {summary['peak_injection_pressure_pa']:.4g} Pa")
     if darcy is not None and not darcy.steady:
@@ -410,11 +416,12 @@ def run_radial(args) -> int:
     bar = None if args.quiet else FrontProgress(case.name, sc.setup)
     snapshots = None if args.snapshots is None else SnapshotRecorder(args.snapshots)
     state, rec = model.run(progress=each_step(bar, snapshots))
-    if bar is not None:
-        bar.close(model, state)
-    summary = write_radial_run(out, sc, model, state, rec, argv=recorded_argv(args),
-                               snapshots=None if snapshots is None else snapshots.taken,
-                               packing=recorded_packing, launcher=getattr(args, "launcher", None))
+    with deferred_interrupts():  # the run is over: a signal now stops the command once it is written
+        if bar is not None:
+            bar.close(model, state)
+        summary = write_radial_run(out, sc, model, state, rec, argv=recorded_argv(args),
+                                   snapshots=None if snapshots is None else snapshots.taken,
+                                   packing=recorded_packing, launcher=getattr(args, "launcher", None))
     early = ""
     if summary["early_peak_fell"]:
         early = (f" (early peak {summary['early_peak_injection_pressure_pa']:.4g} Pa "

@@ -17,6 +17,8 @@ import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
+from .interrupts import deferred_interrupts
+
 
 def toml_value(v) -> str:
     if hasattr(v, "item") and not isinstance(v, (list, tuple)):  # numpy scalars
@@ -97,26 +99,35 @@ def partial_directory(final: Path) -> Path:
     return tmp
 
 
+# run directories this process completed, newest last: a command stopped by a signal held
+# while it wrote one names it (hmdem.cli.dispatch)
+completed: list[Path] = []
+
+
 @contextmanager
 def atomic_run_directory(final: Path):
     """Yield a temporary sibling directory; rename it to ``final`` when the block completes.
 
-    Raises :class:`RunDirectoryTaken` when ``final`` was made meanwhile and holds something: the
-    finished run is then renamed ``<final>.unsaved-XXXX`` rather than lost or merged (a sweep
-    does not read it as a run)."""
+    Ctrl-C and SIGTERM are held while the block writes and delivered once the directory is
+    complete (:func:`~hmdem.interrupts.deferred_interrupts`): a signal at the end of a long run
+    stops the command, but the run it finished is kept. Raises :class:`RunDirectoryTaken` when
+    ``final`` was made meanwhile and holds something: the finished run is then renamed
+    ``<final>.unsaved-XXXX`` rather than lost or merged (a sweep does not read it as a run)."""
     final = Path(final)
-    tmp = partial_directory(final)
-    try:
-        yield tmp
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    try:
-        os.replace(tmp, final)
-    except OSError:
-        if not final.exists():  # not a directory or a file standing at ``final``: another failure
+    with deferred_interrupts():
+        tmp = partial_directory(final)
+        try:
+            yield tmp
+        except BaseException:
+            shutil.rmtree(tmp, ignore_errors=True)
             raise
-        raise set_aside(tmp, final, final.with_name(f"{final.name}{UNSAVED}{tmp.name.rsplit('-', 1)[-1]}")) from None
+        try:
+            os.replace(tmp, final)
+        except OSError:
+            if not final.exists():  # not a directory or a file standing at ``final``: another failure
+                raise
+            raise set_aside(tmp, final, final.with_name(f"{final.name}{UNSAVED}{tmp.name.rsplit('-', 1)[-1]}")) from None
+        completed.append(final)
 
 
 def set_aside(tmp: Path, final: Path, kept: Path) -> RunDirectoryTaken:

@@ -110,6 +110,15 @@ def test_out_through_a_file_is_refused_before_the_run(tmp_path, capsys):
     assert [p.name for p in tmp_path.iterdir()] == ["file"]
 
 
+def test_out_at_a_dangling_link_is_refused_before_the_run(tmp_path, capsys):
+    # a new-user pass: a symbolic link to nothing passed the check (Path.exists follows links),
+    # the run went to its end, and renaming it onto the link failed with a traceback
+    (tmp_path / "link").symlink_to(tmp_path / "nowhere")
+    assert main(["linear", "--case", "darcy", "--max-steps", "3", "--out", str(tmp_path / "link")]) == 2
+    assert "already exists" in capsys.readouterr().err
+    assert [p.name for p in tmp_path.iterdir()] == ["link"]
+
+
 def test_out_where_nothing_can_be_written_is_refused_before_the_run(capsys):
     # /proc takes no new directories, for root too: a run must not find that out at its end
     assert main(["linear", "--case", "vf", "--out", "/proc/hmdem-test/run"]) == 2
@@ -179,6 +188,43 @@ def test_config_toml_names_the_packing_by_path_and_content(tmp_path):
     assert config["packing"]["file"] == str(packing.resolve())
     assert config["packing"]["sha256"] == hashlib.sha256(packing.read_bytes()).hexdigest()
     assert shlex.split(config["run"]["command"]) == ["python", "-m", "hmdem.hele_shaw", *argv]
+
+
+@pytest.mark.parametrize("broken, message", [
+    ("nan_centre", "non-finite centre or a radius"),
+    ("zero_radius", "non-finite centre or a radius"),
+    ("negative_radius", "non-finite centre or a radius"),
+    ("two_discs", "at least 3 discs"),
+    ("tiny_box", "its discs must lie within its box"),
+    ("no_contacts", "0 inflow and 0 outflow domains"),
+])
+def test_a_packing_no_network_can_be_built_on_is_one_line(tmp_path, capsys, broken, message):
+    # a new-user pass: NaN centres, zero radii or a loose packing ended in tracebacks (scipy's
+    # Delaunay, the boundary search) and a negative radius or a box 1e-6 m wide ran silently
+    from dataclasses import replace
+
+    import numpy as np
+
+    from hmdem.network.packing import DiscPacking
+
+    shipped = DiscPacking.load(DATA / "lenormand_packing.npz")
+    centres, radii = shipped.centres.copy(), shipped.radii.copy()
+    changes = {
+        "nan_centre": lambda: {"centres": np.where(np.arange(len(radii))[:, None] == 5, np.nan, centres)},
+        "zero_radius": lambda: {"radii": np.zeros_like(radii)},
+        "negative_radius": lambda: {"radii": np.where(np.arange(len(radii)) == 3, -1e-3, radii)},
+        "two_discs": lambda: {"centres": centres[:2], "radii": radii[:2], "contacts": np.zeros((0, 2), int)},
+        "tiny_box": lambda: {"box": (1e-6, 1e-6)},
+        # three discs far apart: no contact, so no domain and no inflow or outflow
+        "no_contacts": lambda: {"centres": np.array([[0.01, 0.01], [0.05, 0.01], [0.03, 0.05]]),
+                                "radii": np.full(3, 1e-3), "contacts": np.zeros((0, 2), int)},
+    }[broken]()
+    replace(shipped, **changes).save(tmp_path / "broken.npz")
+    assert main(["linear", "--packing", str(tmp_path / "broken.npz"), "--max-steps", "1", "--quiet",
+                 "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("python -m hmdem.hele_shaw: --packing: ") and message in err[0]
+    assert not (tmp_path / "run").exists()
 
 
 def test_a_packing_with_a_grain_in_a_contacts_throat_is_refused(tmp_path, capsys):
@@ -371,6 +417,32 @@ def test_dispatch_exit_status_names_the_signal_and_restores_the_handler():
     assert dispatch("prog", parser, args, {"run": terminated}) == 143
     assert signal.getsignal(signal.SIGTERM) is before
     assert dispatch("prog", parser, args, {"run": ctrl_c}) == 130
+
+
+@pytest.mark.parametrize("where", ["hmdem.report.write_vtu", "hmdem.report.summarize"])
+def test_a_signal_while_a_finished_run_is_written_keeps_the_run(tmp_path, monkeypatch, capsys, where):
+    # a new-user pass: a batch system's SIGTERM (or a Ctrl-C) landing while a finished run was
+    # summarised or written threw the whole run away ("the results in progress were not
+    # written", no directory). It is now held until the directory is complete: exit 143, the
+    # directory whole with the run's own status, and the message names it
+    import signal
+
+    import hmdem.report as report
+
+    module, name = where.rsplit(".", 1)
+    original = getattr(report, name)
+
+    def signalled(*args, **kwargs):
+        signal.raise_signal(signal.SIGTERM)
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(report, name, signalled)
+    out = tmp_path / "run"
+    assert main(["linear", "--case", "darcy", "--max-steps", "3", "--quiet", "--out", str(out)]) == 143
+    assert f"{str(out)!r} was written whole" in capsys.readouterr().err
+    assert json.loads((out / "summary.json").read_text())["status"] == "max_steps"
+    assert {"config.toml", "timeseries.csv", "state.npz", "domains.vtu", "pattern.png"} <= {f.name for f in out.iterdir()}
+    assert not list(tmp_path.glob(".run.partial-*"))
 
 
 def test_interrupt_outside_a_runs_steps_is_one_line_and_status_130(capsys):

@@ -477,7 +477,7 @@ def test_deferred_interrupts_deliver_after_a_raising_block_and_restore_the_handl
     import os
     import signal
 
-    from hmdem.flow.simulation import deferred_interrupts
+    from hmdem.interrupts import deferred_interrupts
 
     before = signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)
     with pytest.raises(KeyboardInterrupt):

@@ -8,6 +8,10 @@ from .contact_graph import boundary_domains
 from .network import Network
 
 
+class NoBoundaryDomains(ValueError):
+    """A network with no domain along an edge that needs one: its grains do not make a cell."""
+
+
 def linear_flow_boundaries(net: Network, band: float) -> tuple[np.ndarray, np.ndarray]:
     """Lenormand cell (seed 004 §4.1): edge domains within ``band`` of the left / right hull.
 
@@ -19,7 +23,8 @@ def linear_flow_boundaries(net: Network, band: float) -> tuple[np.ndarray, np.nd
     inlet = edge[x <= xs.min() + band]
     outlet = edge[x >= xs.max() - band]
     if len(inlet) == 0 or len(outlet) == 0:
-        raise ValueError("no inflow or outflow domains found: widen the boundary band")
+        raise NoBoundaryDomains(f"its network has {len(inlet)} inflow and {len(outlet)} outflow domains "
+                                f"({net.n_domains} domains in all): its discs must touch or nearly touch across the cell")
     return inlet, outlet
 
 
