@@ -47,6 +47,10 @@ def power_of_ten_within(log_range: tuple[float, float]):
 
 viscosity_ratio = power_of_ten_within(LOG_M_RANGE)
 modified_capillary_number = power_of_ten_within(LOG_CA_STAR_RANGE)
+# the narrowest mean aperture a linear run takes [m]: the seeds' smallest is Huang's a0 = 7.53 um;
+# at 1e-12 m vf's entry pressures reached 1 GPa (decisions #94)
+SMALLEST_MEAN_APERTURE = 1e-6
+mean_aperture = number_in(f"a number >= {SMALLEST_MEAN_APERTURE:g} m", lambda v: v >= SMALLEST_MEAN_APERTURE)
 
 
 class _Parser(OneLineParser):
@@ -65,7 +69,8 @@ def build_parser() -> argparse.ArgumentParser:
     rate.add_argument("--rate", type=positive_number, help="injection rate Q [m^3/s per metre of cell depth]")
     lin.add_argument("--viscosity-ratio", type=viscosity_ratio,
                      help="M = eta_inv / eta_def in [1e-6, 1e6]; eta_def is kept, eta_inv = M eta_def")
-    lin.add_argument("--mean-aperture", type=positive_number, help="mean pipe aperture [m] (default 0.42e-3)")
+    lin.add_argument("--mean-aperture", type=mean_aperture,
+                     help=f"mean pipe aperture [m], at least {SMALLEST_MEAN_APERTURE:g} (default 0.42e-3)")
     lin.add_argument("--seed", type=non_negative_int, default=0, help="aperture field seed (default 0)")
     lin.add_argument("--dt", type=positive_number,
                      help="nominal flow step [s] (default per case, scaled with the rate when --ca-star, "
@@ -181,6 +186,18 @@ def check_fill_time(args, pore_volume: float, rate: float) -> None:
                          f"{LONGEST_FILL_TIME:g} s; this one, Q = {rate:.3g} m^2/s, takes {pore_volume / rate:.3g} s")
 
 
+def check_ca_star_bounds(args, case, ca_star: float) -> None:
+    """An :class:`InputError` naming ``--rate`` / ``--mean-aperture`` when the Ca* they give a
+    two-phase run (Eq. 24) leaves ``--ca-star``'s range: ``--rate 1e30`` and ``1e-300`` ran for
+    ever, past the fill-time bound's reach (a new-user pass; decisions #94)."""
+    flags = [f"--{name.replace('_', '-')} {getattr(args, name):g}" for name in ("rate", "mean_aperture")
+             if getattr(args, name) is not None]
+    low, high = (10.0 ** e for e in LOG_CA_STAR_RANGE)
+    if flags and case.two_phase and not low * (1 - 1e-12) <= ca_star <= high * (1 + 1e-12):
+        raise InputError(f"{', '.join(flags)}: must give a Ca* (Eq. 24) in [1e{LOG_CA_STAR_RANGE[0]:g}, "
+                         f"1e{LOG_CA_STAR_RANGE[1]:g}], --ca-star's range; these give {ca_star:.3g}")
+
+
 def make_case(args):
     """The named case with the command-line overrides applied.
 
@@ -278,6 +295,7 @@ def run_linear(args) -> int:
     with near_contacts_checked():
         sc = build_scenario(case, seed=args.seed, inlet=args.inlet, scheme=args.scheme, packing_path=args.packing)
     check_aperture_fits_grains(case.mean_aperture, sc.packing_radii, args.mean_aperture is not None)
+    check_ca_star_bounds(args, case, sc.ca_star)
     check_fill_time(args, float(sc.net.domain_volume.sum()), sc.setup.rate)
     if args.max_steps is not None:
         sc.setup.max_steps = args.max_steps

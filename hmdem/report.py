@@ -84,6 +84,7 @@ def summarize(sc, model, state, rec, d_f: float | None = None) -> dict:
         "steps": rec.steps,
         "eq18_steps": rec.eq18_steps,
         "eq19_steps": rec.eq19_steps,
+        "eq19_bisected_steps": rec.eq19_bisected_steps,
         "linear_solves": rec.solves,
         "unsettled_active_sets": rec.unsettled_solves,
         "max_mass_balance_error": rec.max_mass_balance_error,

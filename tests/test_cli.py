@@ -1,5 +1,6 @@
 """Command line and run-directory contract of ``python -m hmdem.hele_shaw`` (issue 2)."""
 
+import contextlib
 import hashlib
 import json
 import os
@@ -135,6 +136,28 @@ def test_a_negative_number_in_any_notation_gets_the_options_own_message(value, c
     assert capsys.readouterr().err.strip() == (f"python -m hmdem.hele_shaw: --ca-star: must be a number in "
                                                f"[1e-10, 1e4] (where runs were measured to reach breakthrough), "
                                                f"got {value!r}")
+
+
+@pytest.mark.parametrize("flags, message", [
+    (["--rate", "1e30"], "--rate 1e+30: must give a Ca* (Eq. 24) in [1e-10, 1e4], --ca-star's range; these give 2.14e+30"),
+    (["--rate", "1e-300"], "--rate 1e-300: must give a Ca* (Eq. 24) in [1e-10, 1e4]"),
+    (["--mean-aperture", "1e-12"], "--mean-aperture: must be a number >= 1e-06 m, got '1e-12'"),
+])
+def test_rate_and_aperture_keep_ca_star_in_its_range(tmp_path, capsys, flags, message):
+    # a new-user pass: --rate went round --ca-star's bounds (1e30: a 4e-36 s step; 1e-300: 6e299 s
+    # of nothing), and --mean-aperture 1e-12 gave 1 GPa entry pressures; vf's Ca* is 1.9e-4 at
+    # Q = 8.9e-5 m^2/s (Eq. 24), so --rate 1e30 gives 2.14e30
+    with pytest.raises(SystemExit) if flags[0] == "--mean-aperture" else contextlib.nullcontext():
+        assert main(["linear", *flags, "--max-steps", "1", "--out", str(tmp_path / "run")]) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
+
+
+def test_rate_inside_ca_stars_range_and_single_phase_rates_still_run(tmp_path):
+    # the bound is Ca*'s, not the rate's: darcy (one fluid, no Ca*) takes any rate the fill time allows
+    assert main(["linear", "--rate", "1e-4", "--max-steps", "1", "--quiet", "--out", str(tmp_path / "vf")]) == 0
+    assert main(["linear", "--case", "darcy", "--rate", "1e-9", "--max-steps", "1", "--quiet",
+                 "--out", str(tmp_path / "darcy")]) == 0
 
 
 def test_the_write_check_leaves_nothing(tmp_path):

@@ -1,5 +1,7 @@
 """Implicit solver and front criteria: digest seed 004 §13.1 U7-U10 and App. D.1 (U16)."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -114,6 +116,22 @@ def test_eq19_step_ignores_only_the_pipes_at_their_threshold_to_round_off():
     assert blocked_front_step(1.0, start, end, 1.005) == pytest.approx(1.005 / 3, rel=1e-12)
     assert blocked_front_step(1.0, start[:1], end[:1], 1.005) == 1.0  # the round-off pipe alone
     assert blocked_front_step(1.0, np.array([-1.0]), np.array([-0.5]), 1.005) == 1.0  # none crosses
+
+
+def test_an_eq19_step_that_opens_nothing_is_bisected_and_the_run_goes_on():
+    # decisions #93, a new-user pass of the sweep: sd at M = 1, Ca* = 100 (inside the sweep's
+    # axes) stalled at t = 0.0152 s with 690 domains invaded: a shut pipe 2e-5 Pa short of its
+    # threshold, its margin falling before it rises, drew Eq. 19 steps of ~1e-11 s that each
+    # left it further short, for thousands of steps. Bisected, the run breaks through at
+    # 0.0245 s in ~1,700 steps (the old code had not passed t = 0.0152 s after 2,500)
+    case = replace(CASES["sd"], ca_star=100.0, dt_follows_rate=True,
+                   fluids=replace(CASES["sd"].fluids, viscosity_inv=CASES["sd"].fluids.viscosity_def))
+    sc = build_scenario(case, seed=0)
+    sc.setup.max_steps = 2500
+    model = FlowModel(sc.net, sc.setup)
+    state, rec = model.run()
+    assert rec.status == "breakthrough" and rec.eq19_bisected_steps > 0
+    assert rec.max_mass_balance_error < 1e-10
 
 
 def test_pipe_within_the_threshold_tolerance_is_left_to_the_active_set():

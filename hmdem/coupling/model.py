@@ -202,6 +202,10 @@ class CouplingRecord:
 class CoupledFlowModel(FlowModel):
     """:class:`FlowModel` whose grains move (YADE through :class:`GrainModel`)."""
 
+    # its pressures are known to the P-V tolerance, within which a pipe counts as at its
+    # threshold (threshold_tolerance); each bisection pass would be a P-V prediction
+    bisect_missed_openings = False
+
     def __init__(self, net: Network, setup: FlowSetup, grains: GrainModel, coupling: CouplingSetup):
         if coupling.one_way_volume not in ("ignored", "lagged"):
             raise ValueError(f"one_way_volume must be 'ignored' or 'lagged', not {coupling.one_way_volume!r}")

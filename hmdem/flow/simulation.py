@@ -24,6 +24,7 @@ from .pressure import PressureSolution, PressureSystem
 from .sparse import LinearSolveError
 
 MAX_EQ18_PASSES = 30
+MAX_EQ19_PASSES = 10  # bisections of a missed Eq. 19 step: the opening located to 1/1024 of the step
 
 
 class SimulationDiverged(RuntimeError):
@@ -62,6 +63,7 @@ class RunRecord:
     steps: int = 0
     eq18_steps: int = 0
     eq19_steps: int = 0
+    eq19_bisected_steps: int = 0  # Eq. 19 steps whose interpolated step opened nothing (decisions #93)
     solves: int = 0
     unsettled_solves: int = 0  # solves whose shut front pipes cycled or ran out of passes (decisions #88)
     injection_energy: float = 0.0
@@ -112,6 +114,10 @@ class FlowModel:
     # simply drops it; a model whose steps do (moving grains with no snapshot to return to)
     # sets this to hold Ctrl-C and SIGTERM until the step is accepted (deferred_interrupts)
     whole_steps = False
+    # An Eq. 19 step that opened none of the shut pipes is searched again by bisection
+    # (:meth:`_bisect_first_opening`); a coupled model, whose pressures are known to its P-V
+    # tolerance only, counts pipes within that tolerance as open instead (threshold_tolerance)
+    bisect_missed_openings = True
 
     def __init__(self, net: Network, setup: FlowSetup):
         if setup.inlet not in ("manifold", "split"):
@@ -245,17 +251,48 @@ class FlowModel:
                 held, held_fill = self._trial(state, dt, g, orient, pc, shut, hold=True)
                 dt19 = fr.blocked_front_step(dt, m0[shut], held.margin[shut], self.setup.chi)
                 if dt19 < dt:
-                    dt, limiter = dt19, "eq19"
+                    dt_nominal, dt, limiter = dt, dt19, "eq19"
                 elif np.all(held.margin[shut] <= 0.0) and np.all(held.margin[front & ~shut] > 0.0):
                     # shut pipes stay shut and open ones open: the held solution already
                     # satisfies Eq. 6 everywhere, so it is the active-set solution at this dt
                     solved = held, held_fill
         sol, fill = solved or self._trial(state, dt, g, orient, pc, blocked_guess)
+        if limiter == "eq19" and self.bisect_missed_openings and self._missed_opening(sol, shut, m0):
+            dt = self._bisect_first_opening(state, dt, dt_nominal, g, orient, pc, shut)
+            sol, fill = self._trial(state, dt, g, orient, pc, blocked_guess)
+            self.record.eq19_bisected_steps += 1
         if self.setup.two_phase:
             sol, fill, dt, refined = self._refine_overfill(state, dt, sol, fill, g, orient, pc)
             if refined:
                 limiter = "eq18"
         return sol, fill, dt, limiter
+
+    @staticmethod
+    def _missed_opening(sol, shut, margin_start) -> bool:
+        """Whether an Eq. 19 step opened none of the ``shut`` pipes and took none of them even
+        half-way from ``margin_start`` to its threshold (the interpolation puts one there; with
+        chi = 1 exactly on it, U9)."""
+        if np.any(shut & ~sol.blocked):
+            return False
+        deficit = -margin_start[shut]
+        return not np.any(sol.margin[shut] - margin_start[shut] >= 0.5 * deficit)
+
+    def _bisect_first_opening(self, state, dt_shut, dt_open, g, orient, pc, shut) -> float:
+        """A step at whose end one of the ``shut`` pipes has opened, with the pipes held shut:
+        bisection between ``dt_shut`` (none open) and ``dt_open`` (one has), MAX_EQ19_PASSES
+        times, returning the shortest step found open. Eq. 19 interpolates each pipe's
+        p_u - p_d + p_c linearly over the step; a margin that first falls and then rises breaks
+        that, and the interpolated step opens nothing. In sd at M = 1, Ca* = 100 a pipe 2e-5 Pa
+        short of its threshold, falling, drew steps of 1e-11 s that each left it further short,
+        thousands of them (a new-user pass; decisions #93)."""
+        for _ in range(MAX_EQ19_PASSES):
+            middle = 0.5 * (dt_shut + dt_open)
+            held, _ = self._trial(state, middle, g, orient, pc, shut, hold=True)
+            if np.any(held.margin[shut] > 0.0):
+                dt_open = middle
+            else:
+                dt_shut = middle
+        return dt_open
 
     @staticmethod
     def _mark_filled(state: FlowState) -> None:
