@@ -4,6 +4,7 @@ The runs here use a 144-disc triangular packing (~1 s per run); the 5 x 6 grid o
 packing is a `make validate` check (tests/test_sweep_full.py)."""
 
 import csv
+import hashlib
 import json
 import os
 import signal
@@ -90,6 +91,8 @@ def test_axis_spec_gives_evenly_spaced_values_with_both_ends():
     (["--seeds", "1000000000"], "--seeds"),
     (["--log-m", "-5:5:1000", "--log-ca", "-8:2:1000"], "--log-m"),
     (["--scheduler", "notanaddress"], "--scheduler"),  # before the sweep directory is made
+    # a new-user pass: points 5e-5 apart shared a run directory (ids resolve 1e-4 in log10)
+    (["--log-m", "0:0.0001:3"], "--log-m"),
     (["--scheduler", "foo://host:1"], "--scheduler"),
 ])
 def test_invalid_grid_specs_are_rejected_in_one_line(flags, named, tmp_path):
@@ -152,6 +155,38 @@ def test_a_sweep_directory_cannot_be_resumed_with_another_grid(tmp_path):
         Manifest.open(tmp_path, {"log_m": "0:1:2"}, points)
 
 
+def test_a_sweep_is_resumed_on_its_packing_bytes_not_its_packing_name(tmp_path, capsys, monkeypatch):
+    # a new-user pass: a packing file replaced under the same name was resumed into the same
+    # sweep (runs on two samples in one table), while the shipped file named explicitly was
+    # refused as "a different sweep"; the manifest now holds the bytes' SHA-256
+    from dataclasses import replace
+
+    import hmdem.sweep.execute as execute
+    from hmdem.cases import default_packing_path
+    from hmdem.network.packing import DiscPacking
+    from hmdem.report import packing_record
+    from hmdem.sweep.__main__ import main as sweep_main
+
+    monkeypatch.setattr(execute, "run_sweep", lambda manifest, *args, **kwargs: manifest.counts())
+    log_m, log_ca = parse_axis("2:2:1"), parse_axis("0:0:1")
+    grid = ["lenormand", "--log-m", "2:2:1", "--log-ca", "0:0:1", "--quiet"]
+
+    def started(out, packing):  # the manifest of a sweep begun on ``packing``'s bytes
+        Manifest.open(out, lenormand_spec(log_m, log_ca, 1, packing_record(packing)["sha256"]),
+                      lenormand_points(log_m, log_ca, 1))
+
+    packing = tmp_path / "p.npz"
+    packing.write_bytes(default_packing_path().read_bytes())
+    started(tmp_path / "mine", packing)
+    shipped = DiscPacking.load(packing)
+    replace(shipped, seed=shipped.seed + 1).save(packing)  # other bytes under the same name
+    assert sweep_main([*grid, "--packing", str(packing), "--out", str(tmp_path / "mine")]) == 2
+    err = capsys.readouterr().err
+    assert "holds a different sweep (packing_sha256 " in err and "same grid, seeds and packing" in err
+    started(tmp_path / "shipped", default_packing_path())  # begun without --packing
+    assert sweep_main([*grid, "--packing", str(default_packing_path()), "--out", str(tmp_path / "shipped")]) == 0
+
+
 # ---- Dask, resume, failures ----------------------------------------------------------------
 def test_dask_local_sweep_runs_every_point_into_its_run_directory(reference):
     code, out = reference
@@ -203,8 +238,11 @@ def fail_at_low_m(point, packing, packing_name, shown_as):
 
 def open_manifest(out, packing):
     """The manifest the CLI opens for GRID on ``packing`` (so a later CLI run resumes it)."""
+    from hmdem.report import packing_record
+
     log_m, log_ca = parse_axis("-4:2:2"), parse_axis("-6:1:2")
-    return Manifest.open(out, lenormand_spec(log_m, log_ca, 1, packing), lenormand_points(log_m, log_ca, 1))
+    return Manifest.open(out, lenormand_spec(log_m, log_ca, 1, packing_record(packing)["sha256"]),
+                         lenormand_points(log_m, log_ca, 1))
 
 
 @pytest.fixture
@@ -496,6 +534,24 @@ def test_collect_takes_only_lenormand_runs_and_writes_nothing_without_one(tmp_pa
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and "is a run directory; give the directory that holds the runs" in err[0]
         assert sorted(p.name for p in (tmp_path / case).iterdir()) == before
+
+
+def test_collect_warns_when_its_runs_are_more_than_one_sweep(tmp_path, capsys):
+    # a new-user pass: `collect runs` merged five sweeps, one point four times (one of them on
+    # another packing), and drew them as seeds of one sweep without a word
+    import shutil
+
+    from hmdem.hele_shaw import main as run_main
+
+    assert run_main(["linear", "--case", "vf", "--max-steps", "2", "--out", str(tmp_path / "a" / "vf"), "--quiet"]) == 0
+    shutil.copytree(tmp_path / "a", tmp_path / "b")
+    assert sweep_main(["collect", str(tmp_path / "a")]) == 0
+    assert "warning" not in capsys.readouterr().err
+    assert sweep_main(["collect", str(tmp_path)]) == 0
+    assert "warning: log M -4.74473, log Ca* -3.72125, seed 0 is in both a/vf and b/vf" in capsys.readouterr().err
+    rows = read_table(tmp_path / "sweep.csv")
+    assert len(rows) == 2 and rows[0]["packing_sha256"] == hashlib.sha256(
+        (Path(__file__).resolve().parent.parent / "hmdem" / "data" / "lenormand_packing.npz").read_bytes()).hexdigest()
 
 
 def test_runs_kept_aside_and_partial_writes_are_not_read_as_runs(tmp_path):

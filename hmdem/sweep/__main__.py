@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 from .. import __version__
-from ..cases import CASES
+from ..cases import CASES, default_packing_path
 from ..cli import (InputError, OneLineParser, check_aperture_fits_grains, check_out_parent, dispatch,
                    interrupted_status, positive_int, read_packing)
 from .grid import LOG_CA_STAR_RANGE, LOG_M_RANGE
@@ -108,6 +108,7 @@ def check_scheduler_address(address: str) -> None:
 
 def run_lenormand(args) -> int:
     from ..cli import worker_count
+    from ..report import packing_record
     from .execute import run_sweep
     from .grid import lenormand_points, lenormand_spec
     from .manifest import DONE, FAILED, Manifest
@@ -129,7 +130,8 @@ def run_lenormand(args) -> int:
         raise InputError(f"--out: {str(out)!r} is a file, not a sweep directory")
     elif not (out / "manifest.json").is_file() and any(out.iterdir()):
         raise InputError(f"--out: {str(out)!r} exists and is not a sweep directory; choose a new one")
-    spec = lenormand_spec(args.log_m, args.log_ca, args.seeds, args.packing)
+    spec = lenormand_spec(args.log_m, args.log_ca, args.seeds,
+                          packing_record(args.packing or default_packing_path())["sha256"])
     points = lenormand_points(args.log_m, args.log_ca, args.seeds)
     try:
         manifest = Manifest.open(out, spec, points)
@@ -167,9 +169,13 @@ def run_collect(args) -> int:
                          else f"dir: no such directory {str(args.dir)!r}")
     if (args.dir / "summary.json").is_file():  # its tables would land among one run's files
         raise InputError(f"dir: {str(args.dir)!r} is a run directory; give the directory that holds the runs")
-    from .table import collect, other_run_directories
+    from .table import collect, mixed_runs, other_run_directories
 
     rows = collect(args.dir)
+    mixed = mixed_runs(rows)
+    if mixed:
+        print(f"{PROG}: warning: {mixed}; the diagram reads every run as a seed of one sweep (collect one "
+              f"sweep directory at a time)", file=sys.stderr)
     others = other_run_directories(args.dir)
     named = ", ".join(str(d) for d in others[:3]) + (", ..." if len(others) > 3 else "")
     skipped = (f"; {len(others)} other run director{'y' if len(others) == 1 else 'ies'} left out ({named}: "

@@ -30,6 +30,7 @@ class Axis:
 # log Ca* -7.4..2.6).
 LOG_M_RANGE = (-6.0, 6.0)
 LOG_CA_STAR_RANGE = (-10.0, 4.0)
+RUN_ID_STEP = 1e-4  # the resolution of a run directory's name in log10 M and log10 Ca*
 
 
 def parse_axis(text: str, bounds: tuple[float, float] = (-math.inf, math.inf)) -> Axis:
@@ -54,6 +55,9 @@ def parse_axis(text: str, bounds: tuple[float, float] = (-math.inf, math.inf)) -
         raise ValueError(f"COUNT 1 needs START = STOP, got {text!r}")
     if count > 1 and start == stop:
         raise ValueError(f"START = STOP needs COUNT 1, got {text!r}")
+    if count > 1 and abs(stop - start) / (count - 1) < RUN_ID_STEP * (1 - 1e-9):
+        # closer points would share a run directory (SweepPoint.run_id; a new-user pass)
+        raise ValueError(f"points must be at least {RUN_ID_STEP:g} apart, got {text!r}")
     return Axis(start, stop, count)
 
 
@@ -67,17 +71,19 @@ class SweepPoint:
 
     @property
     def run_id(self) -> str:
-        """Directory name; round-trips the grid values to 1e-4 in log10."""
+        """Directory name; round-trips the grid values to RUN_ID_STEP in log10."""
         return f"logM{self.log_m:+.4f}_logCa{self.log_ca_star:+.4f}_seed{self.seed}"
 
     def as_dict(self) -> dict:
         return asdict(self)
 
 
-def lenormand_spec(log_m: Axis, log_ca_star: Axis, seeds: int, packing=None) -> dict:
-    """What a Lenormand sweep is, as its manifest records it (a resumed sweep must match)."""
+def lenormand_spec(log_m: Axis, log_ca_star: Axis, seeds: int, packing_sha256: str) -> dict:
+    """What a Lenormand sweep is, as its manifest records it (a resumed sweep must match): the
+    packing by the SHA-256 of its bytes, so that a file replaced under the same name is not
+    resumed into the same sweep, and the same file named another way is (a new-user pass)."""
     return {"kind": "lenormand", "log_m": log_m.spec(), "log_ca_star": log_ca_star.spec(), "seeds": seeds,
-            "packing": str(packing) if packing else None}
+            "packing_sha256": packing_sha256}
 
 
 def lenormand_points(log_m: Axis, log_ca_star: Axis, seeds: int) -> list[SweepPoint]:

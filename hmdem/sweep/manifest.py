@@ -46,8 +46,10 @@ class Manifest:
         if m.path.is_file():
             old = json.loads(m.path.read_text())
             if old.get("spec") != spec:
-                raise ValueError(f"{str(root)!r} holds a different sweep ({old.get('spec')}); "
-                                 f"use a new --out or the same grid")
+                differ = ", ".join(f"{key} {old.get('spec', {}).get(key)} there, {spec.get(key)} here"
+                                   for key in spec if old.get("spec", {}).get(key) != spec.get(key))
+                raise ValueError(f"{str(root)!r} holds a different sweep ({differ}); use a new --out, "
+                                 f"or the same grid, seeds and packing to resume it")
             for run_id, record in old.get("runs", {}).items():
                 if run_id in m.runs:
                     m.runs[run_id].update(status=record["status"], attempts=record["attempts"],

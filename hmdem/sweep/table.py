@@ -18,7 +18,7 @@ from .runner import INCOMPLETE
 COLUMNS = ["run", "log_m", "log_ca_star", "viscosity_ratio", "ca_star", "ca", "seed", "status", "regime",
            "fractal_dimension", "breakthrough_time_s", "breakthrough_saturation", "peak_injection_pressure_pa",
            "peak_compression",
-           "injection_energy_j", "dissipated_energy_j", "steps", "wall_time_s", "error"]
+           "injection_energy_j", "dissipated_energy_j", "steps", "wall_time_s", "packing_sha256", "error"]
 # columns that differ between two executions of the same runs
 TIMING_COLUMNS = ("wall_time_s",)
 # statuses of rows that carry no result: no run, a run stopped by a failed solve, or by Ctrl-C
@@ -70,6 +70,7 @@ def run_row(root: Path, run_dir: Path) -> dict:
     row.update(run=run_dir.relative_to(root).as_posix(), log_m=round(math.log10(m), 9),
                log_ca_star=round(math.log10(ca_star), 9),
                viscosity_ratio=m, ca_star=ca_star, ca=ca, seed=config.get("run", {}).get("seed"),
+               packing_sha256=config.get("packing", {}).get("sha256"),
                error=summary.get("status_message", "") if summary.get("status") == "diverged" else "")
     return row
 
@@ -100,6 +101,20 @@ def collect(root: Path) -> list[dict]:
         else:
             rows.append(failed)
     return sorted(rows, key=lambda r: (r["log_m"], r["log_ca_star"], r.get("seed") or 0, r["run"]))
+
+
+def mixed_runs(rows: list[dict]) -> str:
+    """What makes ``rows`` more than one sweep, or "": a point (M, Ca*, seed) run more than once,
+    or runs on different packings (a new-user pass: ``collect runs`` merged five sweeps, one
+    point four times, and drew them as seeds of one)."""
+    seen: dict[tuple, str] = {}
+    for row in rows:
+        key = (row["log_m"], row["log_ca_star"], row.get("seed"))
+        if key in seen:
+            return (f"log M {key[0]:g}, log Ca* {key[1]:g}, seed {key[2]} is in both {seen[key]} and {row['run']}")
+        seen[key] = row["run"]
+    packings = {row.get("packing_sha256") for row in rows} - {None}
+    return f"the runs are on {len(packings)} different packings" if len(packings) > 1 else ""
 
 
 def format_value(v) -> str:
