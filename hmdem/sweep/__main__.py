@@ -141,7 +141,8 @@ def run_lenormand(args) -> int:
         # 100,000 workers broke the embedded cluster's start with a traceback; a command recorded on
         # a larger machine still replays (the runs do not depend on the count), as lga's does
         args.workers = worker_count(args.workers, PROG)
-    print(f"sweep directory: {out} ({len(points)} runs, {len(manifest.todo())} to do)", file=sys.stderr)
+    print(f"sweep directory: {out} ({len(points)} run{'' if len(points) == 1 else 's'}, {len(manifest.todo())} to do)",
+          file=sys.stderr)
     interrupted = False
     try:
         counts = run_sweep(manifest, args.packing, args.workers, args.scheduler, progress=not args.quiet)

@@ -15,7 +15,7 @@ import traceback
 from pathlib import Path
 
 from ..cli import available_cores
-from .manifest import DONE, FAILED, PENDING, Manifest
+from .manifest import DONE, FAILED, Manifest
 from .packed import run_packed, unpack_directory
 
 
@@ -34,6 +34,7 @@ class SweepProgress:
 
     def __init__(self, manifest: Manifest, enabled: bool = True):
         self.manifest = manifest
+        self.to_run = len(manifest.todo())  # this invocation's runs (failed ones again) not yet back
         self.bar = None
         if enabled:
             from tqdm import tqdm
@@ -43,12 +44,18 @@ class SweepProgress:
                             file=sys.stderr, smoothing=0.1)
             self.update()
 
-    def update(self, step: int = 0) -> None:
+    def update(self, returned: str | None = None) -> None:
+        """Refresh the counts; ``returned``: the id of a run that came back, done or failed (the
+        bar advances for a done one)."""
         if self.bar is None:
             return
+        step = 0
+        if returned is not None:
+            self.to_run -= 1
+            step = int(self.manifest.runs[returned]["status"] == DONE)
         c = self.manifest.counts()
-        self.bar.set_postfix_str(f"done={c[DONE]}, failed={c[FAILED]}, remaining={c[PENDING] + c[FAILED]}",
-                                 refresh=False)
+        # a failed run is retried when the command is run again: once back, it is not "to run"
+        self.bar.set_postfix_str(f"done={c[DONE]}, failed={c[FAILED]}, to run={self.to_run}", refresh=False)
         self.bar.update(step)
 
     def close(self) -> None:
@@ -114,7 +121,7 @@ def run_sweep(manifest: Manifest, packing: Path | None = None, workers: int | No
                 manifest.finished(point.run_id, None)
             except Exception as exc:  # the run raised, or its worker died too often
                 manifest.finished(point.run_id, error_text(exc))
-            bar.update(1 if manifest.runs[point.run_id]["status"] == DONE else 0)
+            bar.update(point.run_id)
     finally:
         bar.close()
         client.close()
