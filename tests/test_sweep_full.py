@@ -69,10 +69,10 @@ def test_fractal_dimension_falls_with_ca_star_at_low_m_while_the_fluids_stay_liq
 
 
 @pytest.mark.xfail(strict=True, reason="outside the model's range, issue 4: along log M = -5 D_f is 1.79, 1.61, "
-                   "1.66, 1.66, 1.67, 1.87 for log Ca* = -8..2: it falls from capillary to viscous fingering, but "
+                   "1.66, 1.66, 1.67, 1.88 for log Ca* = -8..2 (2026-12-01, after decisions #93; 1.87-1.88 "
+                   "before): it falls from capillary to viscous fingering, but "
                    "the log Ca* = 2 run (Q ~ 1e4 m^3/s per m, peak pressure 1.3 GPa = 0.64 K: the oil would "
-                   "compress by tens of per cent under the linear equation of state) reads 1.87 (1.88 through "
-                   "the YADE launcher's numpy), so the slope over "
+                   "compress by tens of per cent under the linear equation of state) reads 1.88, so the slope over "
                    "the whole column is positive")
 def test_fractal_dimension_falls_with_ca_star_at_low_m(grid):
     ca, d_low = column(grid, -5.0)
