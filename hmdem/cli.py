@@ -324,7 +324,8 @@ def read_packing(path: Path, maker: str = "python -m hmdem.dem.packing or hmdem.
     if Path(path).is_dir():
         raise InputError(f"--packing: {str(path)!r} is a directory; give a packing .npz file")
     if not Path(path).is_file():
-        raise InputError(f"--packing: no such file {str(path)!r}")
+        raise InputError(f"--packing: {str(path)!r} is not a regular file" if Path(path).exists()
+                         else f"--packing: no such file {str(path)!r}")
     try:
         packing = DiscPacking.load(path)
     except KeyError:  # an npz of something else, e.g. a run directory's state.npz

@@ -250,6 +250,12 @@ def test_a_packing_no_network_can_be_built_on_is_one_line(tmp_path, capsys, brok
     assert not (tmp_path / "run").exists()
 
 
+def test_a_packing_that_is_no_regular_file_says_so(tmp_path, capsys):
+    # a new-user pass: --packing /dev/null said "no such file" of a file that exists
+    assert main(["linear", "--packing", "/dev/null", "--out", str(tmp_path / "run")]) == 2
+    assert "--packing: '/dev/null' is not a regular file" in capsys.readouterr().err
+
+
 def test_a_packing_with_a_grain_in_a_contacts_throat_is_refused(tmp_path, capsys):
     # its network would lose the contact and merge two pores (tests/test_network.py)
     from test_network import throat_packing

@@ -208,16 +208,18 @@ def test_dask_local_sweep_runs_every_point_into_its_run_directory(reference):
     assert {r["status"] for r in manifest["runs"].values()} == {"done"}
 
 
-def test_scheduler_address_runs_the_same_sweep_on_an_existing_cluster(reference, packing, tmp_path):
+def test_scheduler_address_runs_the_same_sweep_on_an_existing_cluster(reference, packing, tmp_path, capsys):
     # --scheduler: the same runs on a cluster started elsewhere (here a LocalCluster of this
-    # process; its workers get the packing as bytes and send run directories back)
+    # process; its workers get the packing as bytes and send run directories back). --workers
+    # has no say there, and says so (a new-user pass: it was ignored without a word)
     from distributed import LocalCluster
 
     out = tmp_path / "sweep"
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
         code = sweep_main(["lenormand", *GRID, "--scheduler", cluster.scheduler_address, "--packing", str(packing),
-                           "--out", str(out), "--quiet"])
+                           "--workers", "3", "--out", str(out), "--quiet"])
     assert code == 0
+    assert "warning: --workers 3 is not used with --scheduler" in capsys.readouterr().err
     assert read_table(out / "sweep.csv") == read_table(reference[1] / "sweep.csv")
 
 

@@ -137,6 +137,9 @@ def run_lenormand(args) -> int:
         manifest = Manifest.open(out, spec, points)
     except ValueError as exc:
         raise InputError(f"--out: {exc}") from None
+    if args.scheduler is not None and args.workers is not None:
+        print(f"{PROG}: warning: --workers {args.workers} is not used with --scheduler: the cluster's own "
+              f"workers run the points", file=sys.stderr)
     if args.scheduler is None and args.workers is not None:
         # 100,000 workers broke the embedded cluster's start with a traceback; a command recorded on
         # a larger machine still replays (the runs do not depend on the count), as lga's does
