@@ -241,7 +241,10 @@ def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -
         except CommandFailed as exc:
             print(f"{prog}: {exc}", file=sys.stderr)
             return 1
-        except KeyboardInterrupt:  # a run's time steps catch their own; this one came outside them
+        except KeyboardInterrupt as exc:  # a run's time steps catch their own; this one came outside them
+            if isinstance(exc.__context__, (InputError, RunDirectoryTaken, CommandFailed)):
+                # a signal held through a block that raised one of these is delivered on top of it
+                print(f"{prog}: {exc.__context__}", file=sys.stderr)
             if len(rundir.completed) > written:  # held while a run directory was written (atomic_run_directory)
                 print(f"{prog}: interrupted; {str(rundir.completed[-1])!r} was written whole before it stopped",
                       file=sys.stderr)
@@ -274,6 +277,8 @@ def check_out_parent(out: Path) -> None:
     ancestor = Path(out).absolute().parent
     while not exists(ancestor):
         ancestor = ancestor.parent
+    if ancestor.is_symlink() and not ancestor.exists():
+        raise InputError(f"--out: {str(ancestor)!r} is a symbolic link to nothing")
     if not ancestor.is_dir():
         raise InputError(f"--out: {str(ancestor)!r} is a file, not a directory")
     probe = ancestor / f".hmdem-write-check-{os.getpid()}-{time.monotonic_ns()}"
@@ -355,7 +360,10 @@ def check_packing_grains(path: Path, packing) -> None:
                          f"got centres {centres.shape} and radii {radii.shape}")
     if not (np.isfinite(centres).all() and np.isfinite(radii).all() and (radii > 0).all()):
         raise InputError(f"{name} has discs with a non-finite centre or a radius that is not a finite number > 0")
-    width, height = (float(v) for v in packing.box)
+    box = np.asarray(packing.box, float).ravel()
+    if box.shape != (2,):
+        raise InputError(f"{name}: its box must be two numbers (width, height) in m, got {box.size}")
+    width, height = (float(v) for v in box)
     margin = 2.0 * float(radii.max())
     if not (math.isfinite(width) and math.isfinite(height) and width > 0 and height > 0) or (
             centres.min(axis=0) < -margin).any() or centres[:, 0].max() > width + margin \

@@ -35,14 +35,18 @@ RADIAL_NAMES = ("A1", "A3", "B1", "B3")
 EXPLICIT_DEFAULT_MAX_STEPS = 100_000
 
 
+def within_powers_of_ten(value: float, log_range: tuple[float, float]) -> bool:
+    """Whether ``value`` lies in [10^a, 10^b] (to round-off at the ends)."""
+    low, high = (10.0 ** e for e in log_range)
+    return low * (1 - 1e-12) <= value <= high * (1 + 1e-12)
+
+
 def power_of_ten_within(log_range: tuple[float, float]):
     """argparse type: a number in [10^a, 10^b], where the runs were measured to reach
     breakthrough (the sweep's axes, decisions #77, #78, #90): M = 1e300 was taken and ran for ever
     with nothing invaded, its pipes' conductances underflowing (a new-user pass)."""
-    low, high = (10.0 ** e for e in log_range)
     return number_in(f"a number in [1e{log_range[0]:g}, 1e{log_range[1]:g}] (where runs were measured to reach "
-                     "breakthrough)",
-                     lambda v: low * (1 - 1e-12) <= v <= high * (1 + 1e-12))
+                     "breakthrough)", lambda v: within_powers_of_ten(v, log_range))
 
 
 viscosity_ratio = power_of_ten_within(LOG_M_RANGE)
@@ -187,13 +191,15 @@ def check_fill_time(args, pore_volume: float, rate: float) -> None:
 
 
 def check_ca_star_bounds(args, case, ca_star: float) -> None:
-    """An :class:`InputError` naming ``--rate`` / ``--mean-aperture`` when the Ca* they give a
-    two-phase run (Eq. 24) leaves ``--ca-star``'s range: ``--rate 1e30`` and ``1e-300`` ran for
-    ever, past the fill-time bound's reach (a new-user pass; decisions #94)."""
-    flags = [f"--{name.replace('_', '-')} {getattr(args, name):g}" for name in ("rate", "mean_aperture")
-             if getattr(args, name) is not None]
-    low, high = (10.0 ** e for e in LOG_CA_STAR_RANGE)
-    if flags and case.two_phase and not low * (1 - 1e-12) <= ca_star <= high * (1 + 1e-12):
+    """An :class:`InputError` naming ``--rate`` / ``--mean-aperture`` (and ``--viscosity-ratio``,
+    which enters Eq. 24 through eta_inv) when the Ca* they give a two-phase run leaves
+    ``--ca-star``'s range: ``--rate 1e30`` and ``1e-300`` ran for ever, past the fill-time
+    bound's reach (a new-user pass; decisions #94)."""
+    if args.rate is None and args.mean_aperture is None:
+        return  # Ca* is --ca-star's, or the named case's
+    flags = [f"--{name.replace('_', '-')} {getattr(args, name):g}"
+             for name in ("rate", "mean_aperture", "viscosity_ratio") if getattr(args, name) is not None]
+    if case.two_phase and not within_powers_of_ten(ca_star, LOG_CA_STAR_RANGE):
         raise InputError(f"{', '.join(flags)}: must give a Ca* (Eq. 24) in [1e{LOG_CA_STAR_RANGE[0]:g}, "
                          f"1e{LOG_CA_STAR_RANGE[1]:g}], --ca-star's range; these give {ca_star:.3g}")
 

@@ -13,14 +13,14 @@ import threading
 def deferred_interrupts():
     """Hold Ctrl-C (SIGINT) and SIGTERM until the block ends, then deliver them to the handlers
     that were there, so that an accepted step updates the state, the records and the grains
-    together, and a run directory is written whole: an interrupt that landed half-way left a run directory whose state was a step
-    ahead of its last time-series row (found in review), and one during the writing lost a
-    finished run (a new-user pass). A model whose steps move something it
-    cannot take back (``FlowModel.whole_steps``) holds them through the whole step. Blocks
-    may nest: the inner one's held signals go to the outer one's hold. Held signals are
+    together, and a run directory is written whole: an interrupt that landed half-way left a
+    run directory whose state was a step ahead of its last time-series row (found in review),
+    and one during the writing lost a finished run (a new-user pass). A model whose steps move
+    something it cannot take back (``FlowModel.whole_steps``) holds them through the whole step.
+    Blocks may nest: the inner one's held signals go to the outer one's hold. Held signals are
     delivered also when the block raised (a caller may catch that and go on; FlowModel.run reads
-    a failure beneath the interrupt). Outside the main thread, where handlers cannot be set, the
-    block runs as it is."""
+    a failure beneath the interrupt; dispatch names it). Outside the main thread, where handlers
+    cannot be set, the block runs as it is."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return

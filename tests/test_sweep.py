@@ -187,6 +187,28 @@ def test_a_sweep_is_resumed_on_its_packing_bytes_not_its_packing_name(tmp_path, 
     assert sweep_main([*grid, "--packing", str(default_packing_path()), "--out", str(tmp_path / "shipped")]) == 0
 
 
+def test_a_sweep_started_before_packings_were_recorded_by_their_bytes_resumes(tmp_path):
+    # review: a manifest written before the SHA-256 (its spec named the packing, or None for the
+    # shipped one) was refused as "a different sweep" by the same command; it resumes when its
+    # finished runs name the same bytes, and is refused, naming why, when they do not
+    log_m, log_ca = parse_axis("2:2:1"), parse_axis("0:2:2")
+    points = lenormand_points(log_m, log_ca, 1)
+    spec = lenormand_spec(log_m, log_ca, 1, "a" * 64)
+    legacy = {k: v for k, v in spec.items() if k != "packing_sha256"} | {"packing": None}
+    Manifest.open(tmp_path, legacy, points)  # a sweep directory as the older version left it
+    run = tmp_path / "runs" / points[0].run_id
+    run.mkdir(parents=True)
+    (run / "config.toml").write_text('[packing]\nsha256 = "' + "a" * 64 + '"\n')
+    assert Manifest.open(tmp_path, spec, points).spec == spec
+    assert json.loads((tmp_path / "manifest.json").read_text())["spec"] == spec  # saved as this version writes it
+    other = tmp_path / "other"
+    Manifest.open(other, legacy, points)
+    (other / "runs" / points[0].run_id).mkdir(parents=True)
+    (other / "runs" / points[0].run_id / "config.toml").write_text('[packing]\nsha256 = "' + "b" * 64 + '"\n')
+    with pytest.raises(ValueError, match="packing_sha256 other bytes"):
+        Manifest.open(other, spec, points)
+
+
 # ---- Dask, resume, failures ----------------------------------------------------------------
 def test_dask_local_sweep_runs_every_point_into_its_run_directory(reference):
     code, out = reference

@@ -124,6 +124,8 @@ def run_lenormand(args) -> int:
     if args.scheduler is not None:
         check_scheduler_address(args.scheduler)
     out = args.out or Path("runs") / f"lenormand-{time.strftime('%Y%m%d-%H%M%S')}"
+    if out.is_symlink() and not out.exists():
+        raise InputError(f"--out: {str(out)!r} is a symbolic link to nothing; choose a new sweep directory")
     if not out.exists():
         check_out_parent(out)
     elif not out.is_dir():

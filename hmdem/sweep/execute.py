@@ -30,7 +30,7 @@ def error_text(exc: BaseException) -> str:
 
 
 class SweepProgress:
-    """tqdm bar over all runs of the sweep: done / failed / remaining, with tqdm's ETA."""
+    """tqdm bar over all runs of the sweep: done / failed / this invocation's still to run, with tqdm's ETA."""
 
     def __init__(self, manifest: Manifest, enabled: bool = True):
         self.manifest = manifest

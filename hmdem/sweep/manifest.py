@@ -9,6 +9,7 @@ manifest adds what they cannot say: failures, their error text and the number of
 from __future__ import annotations
 
 import json
+import tomllib
 from pathlib import Path
 
 from ..rundir import write_text_atomic
@@ -45,9 +46,10 @@ class Manifest:
         m = cls(root, spec, points)
         if m.path.is_file():
             old = json.loads(m.path.read_text())
-            if old.get("spec") != spec:
-                differ = ", ".join(f"{key} {old.get('spec', {}).get(key)} there, {spec.get(key)} here"
-                                   for key in spec if old.get("spec", {}).get(key) != spec.get(key))
+            old_spec = m.upgraded(old.get("spec", {}))
+            if old_spec != spec:
+                differ = ", ".join(f"{key} {old_spec.get(key)} there, {spec.get(key)} here"
+                                   for key in sorted(old_spec.keys() | spec.keys()) if old_spec.get(key) != spec.get(key))
                 raise ValueError(f"{str(root)!r} holds a different sweep ({differ}); use a new --out, "
                                  f"or the same grid, seeds and packing to resume it")
             for run_id, record in old.get("runs", {}).items():
@@ -57,6 +59,18 @@ class Manifest:
         m.root.mkdir(parents=True, exist_ok=True)
         m.reconcile()
         return m
+
+    def upgraded(self, old_spec: dict) -> dict:
+        """A spec written before the packing was recorded by its bytes (it named the file, or
+        None for the shipped one) as this version writes it: with this sweep's packing SHA-256
+        when every finished run's config.toml names those bytes, so that the sweep resumes."""
+        if "packing_sha256" in old_spec or "packing" not in old_spec:
+            return old_spec
+        runs = [self.run_dir(r) / "config.toml" for r in self.runs]
+        recorded = {tomllib.loads(c.read_text()).get("packing", {}).get("sha256") for c in runs if c.is_file()}
+        sha = self.spec.get("packing_sha256")
+        rest = {k: v for k, v in old_spec.items() if k != "packing"}
+        return {**rest, "packing_sha256": sha if recorded <= {sha} else f"other bytes ({len(recorded)} files)"}
 
     def run_dir(self, run_id: str) -> Path:
         return self.root / "runs" / run_id
