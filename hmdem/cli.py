@@ -270,6 +270,11 @@ def new_run_directory(out: Path | None, name: str) -> Path:
     return out
 
 
+def dangling_link(path: Path) -> bool:
+    """A symbolic link to nothing: ``exists`` sees it, but nothing can be written through it."""
+    return Path(path).is_symlink() and not Path(path).exists()
+
+
 def check_out_parent(out: Path) -> None:
     """An :class:`InputError` when ``--out`` would go through a file or where nothing can be
     written (tried with an empty directory, removed at once); its missing directories are made
@@ -277,7 +282,7 @@ def check_out_parent(out: Path) -> None:
     ancestor = Path(out).absolute().parent
     while not exists(ancestor):
         ancestor = ancestor.parent
-    if ancestor.is_symlink() and not ancestor.exists():
+    if dangling_link(ancestor):
         raise InputError(f"--out: {str(ancestor)!r} is a symbolic link to nothing")
     if not ancestor.is_dir():
         raise InputError(f"--out: {str(ancestor)!r} is a file, not a directory")

@@ -179,12 +179,16 @@ def add_run_options(sub: argparse.ArgumentParser, default_packing: str) -> None:
 LONGEST_FILL_TIME = 1e300  # [s]: a run's clock, its steps and its plots stay inside double precision
 
 
+def given_flags(args, names) -> list[str]:
+    """``--flag value`` of each of ``names`` (argparse dests) the command line gave."""
+    return [f"--{name.replace('_', '-')} {getattr(args, name):g}" for name in names if getattr(args, name) is not None]
+
+
 def check_fill_time(args, pore_volume: float, rate: float) -> None:
     """An :class:`InputError` naming the rate flags when the injection rate Q they give would fill
     the pores (``pore_volume`` / Q) in more than ``LONGEST_FILL_TIME``: ``--viscosity-ratio
     1e300`` scaled the flow step to 3e303 s, and the run's plot overflowed at t = 1.2e308 s."""
-    flags = [f"--{name.replace('_', '-')} {getattr(args, name):g}" for name in ("rate", "ca_star", "viscosity_ratio")
-             if getattr(args, name) is not None]
+    flags = given_flags(args, ("rate", "ca_star", "viscosity_ratio"))
     if flags and rate and not pore_volume / rate < LONGEST_FILL_TIME:
         raise InputError(f"{', '.join(flags)}: must give an injection rate that fills the pores within "
                          f"{LONGEST_FILL_TIME:g} s; this one, Q = {rate:.3g} m^2/s, takes {pore_volume / rate:.3g} s")
@@ -197,8 +201,7 @@ def check_ca_star_bounds(args, case, ca_star: float) -> None:
     bound's reach (a new-user pass; decisions #94)."""
     if args.rate is None and args.mean_aperture is None:
         return  # Ca* is --ca-star's, or the named case's
-    flags = [f"--{name.replace('_', '-')} {getattr(args, name):g}"
-             for name in ("rate", "mean_aperture", "viscosity_ratio") if getattr(args, name) is not None]
+    flags = given_flags(args, ("rate", "mean_aperture", "viscosity_ratio"))
     if case.two_phase and not within_powers_of_ten(ca_star, LOG_CA_STAR_RANGE):
         raise InputError(f"{', '.join(flags)}: must give a Ca* (Eq. 24) in [1e{LOG_CA_STAR_RANGE[0]:g}, "
                          f"1e{LOG_CA_STAR_RANGE[1]:g}], --ca-star's range; these give {ca_star:.3g}")

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from .. import __version__
 from ..cases import CASES, default_packing_path
-from ..cli import (InputError, OneLineParser, check_aperture_fits_grains, check_out_parent, dispatch,
+from ..cli import (InputError, OneLineParser, check_aperture_fits_grains, check_out_parent, dangling_link, dispatch,
                    interrupted_status, positive_int, read_packing)
 from .grid import LOG_CA_STAR_RANGE, LOG_M_RANGE
 
@@ -124,7 +124,7 @@ def run_lenormand(args) -> int:
     if args.scheduler is not None:
         check_scheduler_address(args.scheduler)
     out = args.out or Path("runs") / f"lenormand-{time.strftime('%Y%m%d-%H%M%S')}"
-    if out.is_symlink() and not out.exists():
+    if dangling_link(out):
         raise InputError(f"--out: {str(out)!r} is a symbolic link to nothing; choose a new sweep directory")
     if not out.exists():
         check_out_parent(out)
