@@ -223,6 +223,28 @@ def read_yade_table(script: str, read_params, **defaults) -> None:
         sys.exit(2)
 
 
+class TableColumnsOnStderr:
+    """``sys.stderr`` for a YADE script whose table columns become CLI flags: each such flag in
+    what the command writes is named by its column as well, ``--dt`` as ``dt (--dt)``, so that
+    an error names the column the user wrote (a new-user pass: a bad ``viscosityRatio`` was
+    reported as ``--viscosity-ratio``). Flags given through the ``flags`` column appear as written
+    there, and are left alone when no column sets them."""
+
+    def __init__(self, stream, columns: dict[str, str]):
+        self._stream = stream
+        self._columns = columns  # flag -> column
+        # longest first, and whole flags only: --dt must not match inside --dtx
+        flags = sorted(columns, key=len, reverse=True)
+        self._pattern = re.compile("(?<![\\w-])(" + "|".join(re.escape(f) for f in flags) + ")(?![\\w-])")
+
+    def write(self, text: str) -> int:
+        self._stream.write(self._pattern.sub(lambda m: f"{self._columns[m.group(1)]} ({m.group(1)})", text))
+        return len(text)
+
+    def __getattr__(self, name):  # flush, isatty, fileno, encoding: the terminal's own
+        return getattr(self._stream, name)
+
+
 def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -> int:
     """Run ``commands[args.command](args)``: a batch system's SIGTERM (or kill) ends it like
     Ctrl-C (exit status :func:`interrupted_status`), an :class:`InputError` is one line on stderr

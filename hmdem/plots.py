@@ -45,9 +45,11 @@ def _finish_sample_plane(fig, ax, path, title: str, autoscale: bool = True) -> N
     plt.close(fig)
 
 
-def plot_pattern(path, net: Network, saturation: np.ndarray, title: str, radii=None, overlay=None) -> None:
+def plot_pattern(path, net: Network, saturation: np.ndarray, title: str, radii=None, overlay=None,
+                 note: str | None = None) -> None:
     """Invaded domains drawn as polygons (union of their triangles), coloured by saturation;
-    ``overlay``: segments (k, 2, 2) [m] drawn in red (opened contacts of a coupled run)."""
+    ``overlay``: segments (k, 2, 2) [m] drawn in red (opened contacts of a coupled run);
+    ``note``: a line written across the sample (a single-phase run, where nothing invades)."""
     tri, s = _domain_triangulation(net, saturation)
     fig, ax = plt.subplots(figsize=(6.4, 6))
     pc = ax.tripcolor(tri, facecolors=s, cmap="Blues", vmin=0, vmax=1, edgecolors="none")
@@ -61,36 +63,56 @@ def plot_pattern(path, net: Network, saturation: np.ndarray, title: str, radii=N
         ax.plot(c[:, 0], c[:, 1], ".", color=colour, ms=3, label=label)
     fig.colorbar(pc, ax=ax, label="invading saturation S")
     ax.legend(loc="upper right", fontsize=7)
+    if note:
+        ax.text(0.5, 0.5, note, transform=ax.transAxes, ha="center", va="center", fontsize=9,
+                bbox={"facecolor": "white", "alpha": 0.85, "edgecolor": "0.6"})
     _finish_sample_plane(fig, ax, path, title, autoscale=False)
 
 
+PRESSURE_UNITS = (("GPa", 1e9), ("MPa", 1e6), ("kPa", 1e3), ("Pa", 1.0))
+
+
+def pressure_unit(largest: float) -> tuple[str, float]:
+    """The unit in which ``largest`` (Pa, magnitude) reads as 1 to 999: kPa ticks at GPa
+    pressures (a sweep's compressed air) were seven digits long."""
+    for name, factor in PRESSURE_UNITS:
+        if abs(largest) >= factor:
+            return name, factor
+    return PRESSURE_UNITS[-1]
+
+
 def plot_pressure(path, net: Network, pressure: np.ndarray, times, p_in, title: str, early_peak=None) -> None:
-    """Final pressure field and the mean injection pressure against time; ``early_peak``
-    ({"time": s, "pressure": Pa}) is marked when given."""
+    """Final pressure field and the mean injection pressure against time, each in the unit of
+    its own largest magnitude; ``early_peak`` ({"time": s, "pressure": Pa}) is marked when given."""
     tri, p = _domain_triangulation(net, pressure)
     fig, (a0, a1) = plt.subplots(1, 2, figsize=(11, 4.6))
     # a few isolated domains (trapped, compressed pockets) would squeeze the field into the
     # bottom of the scale: it ends at the 99.5th percentile of the domains, and the bar's arrow
     # says that some lie above
-    top = float(np.percentile(pressure, 99.5)) / 1e3
-    low = min(float(np.min(pressure)) / 1e3, top)
+    field_unit, field_factor = pressure_unit(float(np.max(np.abs(pressure))) if len(pressure) else 0.0)
+    top = float(np.percentile(pressure, 99.5)) / field_factor
+    low = min(float(np.min(pressure)) / field_factor, top)
     # cut only where the scale ends below the maximum (top == low: the full range, vmax None)
-    cut = float(np.max(pressure)) / 1e3 > top + 1e-9 * abs(top) + 1e-12 and top > low
-    pc = a0.tripcolor(tri, facecolors=p / 1e3, cmap="viridis", edgecolors="none", vmin=low,
+    cut = float(np.max(pressure)) / field_factor > top + 1e-9 * abs(top) + 1e-12 and top > low
+    pc = a0.tripcolor(tri, facecolors=p / field_factor, cmap="viridis", edgecolors="none", vmin=low,
                       vmax=top if top > low else None)
-    fig.colorbar(pc, ax=a0, label="p [kPa]", extend="max" if cut else "neither")
+    fig.colorbar(pc, ax=a0, label=f"p [{field_unit}]", extend="max" if cut else "neither")
     a0.set_aspect("equal")
     a0.set_xlabel("x [mm]")
     a0.set_ylabel("y [mm]")
-    clipped = f" (scale ends at the 99.5th percentile; max {np.max(pressure) / 1e3:.4g} kPa)" if cut else ""
+    clipped = (f" (scale ends at the 99.5th percentile; max {np.max(pressure) / field_factor:.4g} {field_unit})"
+               if cut else "")
     a0.set_title(f"final pressure{clipped}", fontsize=9)
-    a1.plot(times, np.asarray(p_in) / 1e3, lw=1)
+    p_in = np.asarray(p_in, dtype=float)
+    curve_unit, curve_factor = pressure_unit(float(np.max(np.abs(p_in))) if len(p_in) else 0.0)
+    a1.plot(times, p_in / curve_factor, lw=1)
     if early_peak is not None:
-        a1.plot([early_peak["time"]], [early_peak["pressure"] / 1e3], "o", mfc="none", color="C3", label="early peak")
+        a1.plot([early_peak["time"]], [early_peak["pressure"] / curve_factor], "o", mfc="none", color="C3",
+                label="early peak")
         a1.legend(fontsize=8, loc="lower right")
     a1.set_xlabel("t [s]")
     a1.ticklabel_format(axis="x", style="sci", scilimits=(-2, 3))  # B3's 0.00025 s ticks crowded the axis
-    a1.set_ylabel("mean injection pressure [kPa]")
+    a1.set_ylabel(f"mean injection pressure [{curve_unit}]")
     a1.set_title(title, fontsize=9)
     a1.grid(alpha=0.3)
     fig.tight_layout()

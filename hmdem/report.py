@@ -150,7 +150,8 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
         stopped = stop_note(rec.status, "breakthrough" if sc.setup.two_phase else "t_max")
         title = f"{case_title(sc.case)}\nCa* = {sc.ca_star:.3g}, M = {sc.setup.fluids.viscosity_ratio:.3g}, t = {state.t:.4g} s, " \
                 f"{summary['regime']}, {dimension_note(summary['fractal_dimension'])}" + (f"\n{stopped.strip()}" if stopped else "")
-        plot_pattern(tmp / "pattern.png", net, state.saturation, title, sc.packing_radii, overlay)
+        single_phase = None if sc.setup.two_phase else "single phase: nothing invades\n(the pressure field is in pressure.png)"
+        plot_pattern(tmp / "pattern.png", net, state.saturation, title, sc.packing_radii, overlay, note=single_phase)
         marked = {"time": summary["early_peak_time_s"], "pressure": summary["early_peak_injection_pressure_pa"]}
         plot_pressure(tmp / "pressure.png", net, state.pressure, *rec.injection_pressure(),
                       f"{sc.case.name}: mean injection pressure{stopped}", marked if summary["early_peak_fell"] else None)

@@ -392,6 +392,28 @@ def test_yade_batch_table_errors_are_one_line(tmp_path, header, row, message):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.table"]  # no run started
 
 
+@pytest.mark.parametrize("row, named", [
+    ("'B3' -1 0 ''", "dt (--dt): must be a finite number > 0, got '-1'"),
+    ("'B3' 0 1e30 ''", "viscosityRatio (--viscosity-ratio): must be a number in [1e-6, 1e6]"),
+    ("'B3' 0 0 '--dt=-2'", "hele_shaw: --dt: must be a finite number > 0, got '-2'"),  # written as a flag
+])
+def test_radial_script_errors_name_the_table_column(tmp_path, row, named):
+    # a new-user pass: a bad column was reported by the CLI flag the script made of it
+    import os
+    import subprocess
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parent.parent / "yade_scripts" / "radial_injection.py"
+    table = tmp_path / "bad.table"
+    table.write_text(f"description case dt viscosityRatio flags\nbad {row}\n")
+    proc = subprocess.run(["yade", "-n", "-x", str(script)], cwd=tmp_path, capture_output=True, text=True,
+                          timeout=120, env={**os.environ, "YADE_BATCH": f"{table}:2"})
+    assert proc.returncode == 2
+    assert named in proc.stderr
+    assert "Traceback" not in proc.stderr + proc.stdout
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.table"]  # no run started
+
+
 @pytest.mark.parametrize("script", ["radial_injection.py", "hele_shaw_linear.py"])
 def test_yade_scripts_answer_help_and_refuse_flags_before_running(script, tmp_path):
     # a new-user pass: `yade -n -x yade_scripts/radial_injection.py --help` started A1 (its

@@ -29,7 +29,7 @@ ROOT = Path(sys.argv[0]).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.extend(str(p) for p in sorted((ROOT / ".venv" / "lib").glob("python3*/site-packages")))
 
-from hmdem.cli import read_yade_table, yade_script_arguments  # noqa: E402
+from hmdem.cli import TableColumnsOnStderr, read_yade_table, yade_script_arguments  # noqa: E402
 
 yade_script_arguments("yade_scripts/radial_injection.py", __doc__, sys.argv[1:])  # before YADE's scene and any run
 
@@ -43,35 +43,49 @@ from yade.params import table  # noqa: E402
 from hmdem.hele_shaw import main  # noqa: E402
 
 description = O.tags["description"] if "description" in O.tags.keys() else ""
-# a batch job's bar would fill its log file; `yade -n -x` shows it on the terminal
-argv = ["radial", "--case", table.case] + (["--quiet"] if description else [])
+argv = []
+columns = {}  # flag -> the table column that set it, for the command's messages
+
+
+def pass_on(column, flag, *values):
+    argv.extend((flag, *values))
+    columns[flag] = column
+
+
+pass_on("case", "--case", table.case)
+if description:  # a batch job's bar would fill its log file; `yade -n -x` shows it on the terminal
+    argv.append("--quiet")
 if table.oneWay:
-    argv.append("--one-way")
+    pass_on("oneWay", "--one-way")
 if table.maxSteps:  # a table may write 2e4; 2.5 goes on to the CLI's check
     steps = table.maxSteps
-    argv += ["--max-steps", str(int(steps)) if float(steps).is_integer() else str(steps)]
+    pass_on("maxSteps", "--max-steps", str(int(steps)) if float(steps).is_integer() else str(steps))
 # columns whose 0 means "the case's own value"; the CLI checks the others
 for column, flag in (("dt", "--dt"), ("viscosityRatio", "--viscosity-ratio"), ("caStar", "--ca-star"),
                      ("grainDensity", "--grain-density"), ("stiffnessRatio", "--stiffness-ratio")):
     if getattr(table, column):
-        argv += [flag, str(getattr(table, column))]
+        pass_on(column, flag, str(getattr(table, column)))
 if table.fixedPort:
-    argv.append("--fixed-port")
+    pass_on("fixedPort", "--fixed-port")
 if table.friction != -1:  # 0 is a valid coefficient, so "unset" is -1; other values go to the CLI's check
-    argv += ["--friction", str(table.friction)]
-argv += ["--boundary", table.boundary]  # the CLI checks the value
+    pass_on("friction", "--friction", str(table.friction))
+pass_on("boundary", "--boundary", table.boundary)  # the CLI checks the value
 if table.packing:
-    argv += ["--packing", table.packing]
+    pass_on("packing", "--packing", table.packing)
 if table.flags:  # 0 or '' for none, as the other columns' "unset"
     if not isinstance(table.flags, str):
         print(f"yade_scripts/radial_injection.py: table: flags must be a quoted string of comma-separated CLI "
               f"flags, got {table.flags!r}", file=sys.stderr)
         sys.exit(2)
-    argv += [flag for flag in table.flags.split(",") if flag]  # the CLI checks each (a repeated flag: the last)
+    given = [flag for flag in table.flags.split(",") if flag]  # the CLI checks each (a repeated flag: the last)
+    argv += given
+    for flag in given:  # a flag written there is named as written
+        columns.pop(flag.split("=", 1)[0], None)
 out = table.out or (f"runs/batch/{description}" if description else "")
 if out:
-    argv += ["--out", out]
+    pass_on("out", "--out", out)
 # yade-batch starts a job with YADE_BATCH=<table>:<line>, which names the row that set its columns
 batch = os.environ.get("YADE_BATCH", "")
 launcher = (f"yade-batch {batch} ({description!r})" if description else "yade -n -x") + " yade_scripts/radial_injection.py"
-sys.exit(main(argv, launcher=launcher))
+sys.stderr = TableColumnsOnStderr(sys.stderr, columns)  # an error names the column, as the user wrote it
+sys.exit(main(["radial"] + argv, launcher=launcher))
