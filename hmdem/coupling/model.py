@@ -202,9 +202,13 @@ class CouplingRecord:
 class CoupledFlowModel(FlowModel):
     """:class:`FlowModel` whose grains move (YADE through :class:`GrainModel`)."""
 
-    # its pressures are known to the P-V tolerance, within which a pipe counts as at its
-    # threshold (threshold_tolerance); each bisection pass would be a P-V prediction
-    bisect_missed_openings = False
+    @property
+    def bisect_missed_openings(self) -> bool:
+        """Whether an Eq. 19 step that opens nothing is bisected (decisions #93): for the one-way
+        variant, whose solves are exact as the fixed-grain model's, but not for the two-way
+        model, whose pressures are known to the P-V tolerance, within which a pipe counts as at
+        its threshold (threshold_tolerance), and where each pass would be a P-V prediction."""
+        return self.coupling.one_way
 
     def __init__(self, net: Network, setup: FlowSetup, grains: GrainModel, coupling: CouplingSetup):
         if coupling.one_way_volume not in ("ignored", "lagged"):
