@@ -238,8 +238,15 @@ class TableColumnsOnStderr:
         self._pattern = re.compile("(?<![\\w-])(" + "|".join(re.escape(f) for f in flags) + ")(?![\\w-])")
 
     def write(self, text: str) -> int:
-        self._stream.write(self._pattern.sub(lambda m: f"{self._columns[m.group(1)]} ({m.group(1)})", text))
-        return len(text)
+        named = text
+        if self._columns:  # with none, the pattern would be an empty group matching everywhere
+            named = self._pattern.sub(lambda m: f"{self._columns[m.group(1)]} ({m.group(1)})", text)
+        self._stream.write(named)
+        return len(text)  # what the caller wrote, as a text stream counts it
+
+    def writelines(self, lines) -> None:
+        for line in lines:
+            self.write(line)
 
     def __getattr__(self, name):  # flush, isatty, fileno, encoding: the terminal's own
         return getattr(self._stream, name)

@@ -81,26 +81,35 @@ def pressure_unit(largest: float) -> tuple[str, float]:
     return PRESSURE_UNITS[-1]
 
 
+def field_scale(pressure: np.ndarray) -> tuple[str, float, float, float | None, bool]:
+    """The pressure map's colour scale: (unit, Pa per unit, low, top or None for the full range,
+    whether the scale is cut below the maximum). A few isolated domains (trapped, compressed
+    pockets) would squeeze the field into the bottom of the scale, so it ends at the 99.5th
+    percentile of the domains, and the unit follows the scale, not those few (a 30 kPa field
+    with three 2 GPa pockets reads in kPa, the title naming the maximum)."""
+    top_pa = float(np.percentile(pressure, 99.5))
+    low_pa = min(float(np.min(pressure)), top_pa)
+    unit, factor = pressure_unit(max(abs(low_pa), abs(top_pa)))
+    top, low = top_pa / factor, low_pa / factor
+    # cut only where the scale ends below the maximum (top == low: the full range, vmax None)
+    cut = float(np.max(pressure)) / factor > top + 1e-9 * abs(top) + 1e-12 and top > low
+    return unit, factor, low, top if top > low else None, cut
+
+
 def plot_pressure(path, net: Network, pressure: np.ndarray, times, p_in, title: str, early_peak=None) -> None:
     """Final pressure field and the mean injection pressure against time, each in the unit of
-    its own largest magnitude; ``early_peak`` ({"time": s, "pressure": Pa}) is marked when given."""
+    its own scale; ``early_peak`` ({"time": s, "pressure": Pa}) is marked when given."""
     tri, p = _domain_triangulation(net, pressure)
     fig, (a0, a1) = plt.subplots(1, 2, figsize=(11, 4.6))
-    # a few isolated domains (trapped, compressed pockets) would squeeze the field into the
-    # bottom of the scale: it ends at the 99.5th percentile of the domains, and the bar's arrow
-    # says that some lie above
-    field_unit, field_factor = pressure_unit(float(np.max(np.abs(pressure))) if len(pressure) else 0.0)
-    top = float(np.percentile(pressure, 99.5)) / field_factor
-    low = min(float(np.min(pressure)) / field_factor, top)
-    # cut only where the scale ends below the maximum (top == low: the full range, vmax None)
-    cut = float(np.max(pressure)) / field_factor > top + 1e-9 * abs(top) + 1e-12 and top > low
-    pc = a0.tripcolor(tri, facecolors=p / field_factor, cmap="viridis", edgecolors="none", vmin=low,
-                      vmax=top if top > low else None)
+    field_unit, field_factor, low, top, cut = field_scale(np.asarray(pressure, dtype=float))
+    pc = a0.tripcolor(tri, facecolors=p / field_factor, cmap="viridis", edgecolors="none", vmin=low, vmax=top)
     fig.colorbar(pc, ax=a0, label=f"p [{field_unit}]", extend="max" if cut else "neither")
     a0.set_aspect("equal")
     a0.set_xlabel("x [mm]")
     a0.set_ylabel("y [mm]")
-    clipped = (f" (scale ends at the 99.5th percentile; max {np.max(pressure) / field_factor:.4g} {field_unit})"
+    largest = float(np.max(pressure))
+    largest_unit, largest_factor = pressure_unit(largest)
+    clipped = (f" (scale ends at the 99.5th percentile; max {largest / largest_factor:.4g} {largest_unit})"
                if cut else "")
     a0.set_title(f"final pressure{clipped}", fontsize=9)
     p_in = np.asarray(p_in, dtype=float)

@@ -383,7 +383,9 @@ TABLE = "yade_scripts/radial_injection.py: table: "
     # the script made of it), and a flag written in the flags column as written
     ("case dt", "'B3' -1", "dt (--dt): must be a finite number > 0, got '-1'"),
     ("case viscosityRatio", "'B3' 1e30", "viscosityRatio (--viscosity-ratio): must be a number in [1e-6, 1e6]"),
-    ("case dt flags", "'B3' 0 '--dt=-2'", "hele_shaw: --dt: must be a finite number > 0, got '-2'"),
+    ("case out", "'B3' 'bad.table'", "out (--out): 'bad.table' already exists"),
+    # (the flags column's --dt comes after the dt column's, and the last one given counts)
+    ("case dt flags", "'B3' 1e-7 '--dt=-2'", "hele_shaw: --dt: must be a finite number > 0, got '-2'"),
 ])
 def test_yade_batch_table_errors_are_one_line(tmp_path, header, row, message):
     # YADE's readParamsFromTable evaluates each value as Python and raises NameError or

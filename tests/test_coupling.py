@@ -431,10 +431,10 @@ def test_energy_partition_reads_the_first_step_and_the_step_that_opened_the_firs
     assert keys["fracture_onset_time_s"] == 2.5e-6 and keys["fracture_onset_injection_pressure_pa"] == 5e5
     assert keys["fracture_onset_residual_energy_j"] == 1.0 and keys["fracture_onset_dissipated_fraction"] == 0.95
     assert keys["fracture_onset_step_s"] == 0.5e-6
-    assert keys["first_step_end_viscosity_residual_energy_j"] == 1.0
-    assert keys["first_step_end_viscosity_dissipated_fraction"] == 0.5
-    assert keys["fracture_onset_end_viscosity_residual_energy_j"] == 2.0
-    assert keys["fracture_onset_end_viscosity_dissipated_fraction"] == 0.9
+    assert keys["first_step_end_resistance_residual_energy_j"] == 1.0
+    assert keys["first_step_end_resistance_dissipated_fraction"] == 0.5
+    assert keys["fracture_onset_end_resistance_residual_energy_j"] == 2.0
+    assert keys["fracture_onset_end_resistance_dissipated_fraction"] == 0.9
     # an opening time between two recorded ends belongs to the step that ends after it
     assert energy_partition(t, dt, p, injected, dissipated, 2.2e-6, at_end)["fracture_onset_time_s"] == 2.5e-6
     # no contact opened, or none by the last recorded step: the onset keys are nan, the first step's stay
@@ -455,7 +455,7 @@ def test_step_energies_are_the_differences_of_the_cumulative_columns():
     t, dt, p, injected, dissipated = rec.step_energies()
     assert t.tolist() == [1.0, 2.0] and dt.tolist() == [1.0, 1.0] and p.tolist() == [5.0, 7.0]
     assert injected.tolist() == [2.0, 3.0] and dissipated.tolist() == [0.5, 2.5]
-    assert rec.step_dissipation_end_viscosity().tolist() == [0.25, 1.75]
+    assert rec.step_dissipation_end_resistance().tolist() == [0.25, 1.75]
     assert all(len(a) == 0 for a in RunRecord().step_energies())
 
 

@@ -14,3 +14,20 @@ def test_pressure_unit_reads_the_largest_pressure_as_1_to_999(largest, unit):
     assert name == unit
     if largest:
         assert 1.0 <= abs(largest) / factor < 1000.0
+
+
+def test_the_pressure_map_reads_in_the_unit_of_its_scale_not_of_a_few_compressed_pockets():
+    import numpy as np
+
+    from hmdem.plots import field_scale
+
+    # a 30 kPa field with three 2 GPa domains: the scale ends at the 99.5th percentile, in kPa
+    field = np.r_[np.linspace(0.0, 30e3, 997), [2e9, 2e9, 2e9]]
+    unit, factor, low, top, cut = field_scale(field)
+    assert (unit, factor, cut) == ("kPa", 1e3, True)
+    assert low == 0.0 and top == pytest.approx(np.percentile(field, 99.5) / 1e3)
+    # a field whose top half percent is its maximum: its full range, uncut, in its own unit
+    unit, factor, low, top, cut = field_scale(np.r_[np.linspace(-1e6, 9.3e8, 500), np.full(10, 9.3e8)])
+    assert (unit, cut) == ("MPa", False) and low == -1.0 and top == pytest.approx(930.0)
+    # a uniform field has no range to scale over: vmax None
+    assert field_scale(np.full(10, 5e3))[3] is None

@@ -81,9 +81,10 @@ if table.flags:  # 0 or '' for none, as the other columns' "unset"
     argv += given
     for flag in given:  # a flag written there is named as written
         columns.pop(flag.split("=", 1)[0], None)
-out = table.out or (f"runs/batch/{description}" if description else "")
-if out:
-    pass_on("out", "--out", out)
+if table.out:
+    pass_on("out", "--out", table.out)
+elif description:  # the batch's own place: no column to name
+    argv += ["--out", f"runs/batch/{description}"]
 # yade-batch starts a job with YADE_BATCH=<table>:<line>, which names the row that set its columns
 batch = os.environ.get("YADE_BATCH", "")
 launcher = (f"yade-batch {batch} ({description!r})" if description else "yade -n -x") + " yade_scripts/radial_injection.py"
