@@ -103,7 +103,8 @@ class RunRecord:
     def step_dissipation_end_resistance(self) -> np.ndarray:
         """Each recorded step's dE_v = sum_k (p_i - p_j)^2 / R_s,k dt: Eq. 26 with Eq. 27's
         q_ij = (p_i - p_j) / R_s, R_s each pipe's at the step's end (its Eq. 4 viscosity and, with
-        moving grains, its aperture), the step's pressures unchanged (decisions #95)."""
+        moving grains, its aperture), the step's pressures unchanged, front pipes it held shut
+        left out (decisions #95)."""
         (cumulative,) = self.series("dissipation_end_resistance")
         return np.diff(cumulative, prepend=0.0)
 
@@ -477,8 +478,9 @@ class FlowModel:
             self._mark_filled(state)
         self._end_step(state, dt)  # moving grains rescale the saturations and set new apertures
         # Eq. 26 with Eq. 27's q_ij = (p_i - p_j) / R_s, R_s the pipes' at the step's end, the
-        # resistances the paper reports beside its energies (decisions #95)
-        end_conductance = self.pipe_properties(state)[0]
+        # resistances the paper reports beside its energies (decisions #95); a front pipe the
+        # step held shut carried nothing
+        end_conductance = np.where(sol.blocked, 0.0, self.pipe_properties(state)[0])
         rec.dissipated_energy_end_resistance += float(np.sum(end_conductance * dp * dp)) * dt
         rec.steps += 1
         rec.eq18_steps += limiter == "eq18"
