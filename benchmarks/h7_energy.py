@@ -10,8 +10,7 @@ dE_f 134.7 uJ, contacts of 0.47 and 0.79 N open). This runs paper-size A3 and B3
 opened contact, with the port variants of ``b3_port.py`` (free: the default), and prints per run
 the first step's and the onset step's figures (``summary.json``'s ``first_step_*`` and
 ``fracture_onset_*``) and the contact forces, after settling, of the contacts that opened in the
-onset step. In brackets, dE_v read as sum (p_i - p_j)^2 / R_s dt with Eq. 27's pipe resistances at
-the step's end (decisions #95). 5-15 s a run on one core (A3 with its port held, to 13 us: ~15 s).
+onset step. 5-15 s a run on one core (A3 with its port held, to 13 us: ~15 s).
 """
 import argparse
 import sys
@@ -36,17 +35,14 @@ def run(case: str, label: str, t_max: float) -> str:
     state, rec = model.run()
     opened_time = np.where(model.opened, model.opened_time, np.inf)
     onset = float(opened_time.min())  # the summary's first_opening_time_s
-    e = energy_partition(*rec.step_energies(), onset, rec.step_dissipation_end_resistance())
+    e = energy_partition(*rec.step_energies(), onset)
     first_forces = np.sort(model.initial_force[opened_time == onset])  # empty when none opened
     return (f"| {case} {label} | {e['first_step_injection_pressure_pa'] / KPA:.3g} kPa, "
-            f"{e['first_step_injection_energy_j'] / UJ:.3g} uJ, {100 * e['first_step_dissipated_fraction']:.1f} % "
-            f"({100 * e['first_step_end_resistance_dissipated_fraction']:.1f} %) | "
+            f"{e['first_step_injection_energy_j'] / UJ:.3g} uJ, {100 * e['first_step_dissipated_fraction']:.1f} % | "
             f"{onset * 1e6:.3g} us | {e['fracture_onset_step_s']:.2g} s | "
             f"{e['fracture_onset_injection_pressure_pa'] / KPA:.4g} kPa | "
-            f"{e['fracture_onset_injection_energy_j'] / UJ:.4g} uJ | {e['fracture_onset_residual_energy_j'] / UJ:.3g} uJ "
-            f"({e['fracture_onset_end_resistance_residual_energy_j'] / UJ:.3g} uJ) | "
-            f"{100 * e['fracture_onset_dissipated_fraction']:.1f} % "
-            f"({100 * e['fracture_onset_end_resistance_dissipated_fraction']:.1f} %) | {len(first_forces)}: "
+            f"{e['fracture_onset_injection_energy_j'] / UJ:.4g} uJ | {e['fracture_onset_residual_energy_j'] / UJ:.3g} uJ | "
+            f"{100 * e['fracture_onset_dissipated_fraction']:.1f} % | {len(first_forces)}: "
             f"{' '.join(f'{f:.2g}' for f in first_forces[:6])}{' ...' if len(first_forces) > 6 else ''} |")
 
 

@@ -423,39 +423,33 @@ def test_energy_partition_reads_the_first_step_and_the_step_that_opened_the_firs
     p = np.array([5e3, 4e5, 5e5, 6e5])
     injected = np.array([2.0, 10.0, 20.0, 30.0])
     dissipated = np.array([0.5, 9.0, 19.0, 30.0])
-    at_end = np.array([1.0, 8.0, 18.0, 30.0])  # the same at the step's end viscosities (decisions #95)
-    keys = energy_partition(t, dt, p, injected, dissipated, 2.5e-6, at_end)
+    keys = energy_partition(t, dt, p, injected, dissipated, 2.5e-6)
     assert keys["first_step_time_s"] == 1e-6 and keys["first_step_injection_pressure_pa"] == 5e3
     assert keys["first_step_injection_energy_j"] == 2.0 and keys["first_step_residual_energy_j"] == 1.5
     assert keys["first_step_dissipated_fraction"] == 0.25 and keys["first_step_step_s"] == 1e-6
     assert keys["fracture_onset_time_s"] == 2.5e-6 and keys["fracture_onset_injection_pressure_pa"] == 5e5
     assert keys["fracture_onset_residual_energy_j"] == 1.0 and keys["fracture_onset_dissipated_fraction"] == 0.95
     assert keys["fracture_onset_step_s"] == 0.5e-6
-    assert keys["first_step_end_resistance_residual_energy_j"] == 1.0
-    assert keys["first_step_end_resistance_dissipated_fraction"] == 0.5
-    assert keys["fracture_onset_end_resistance_residual_energy_j"] == 2.0
-    assert keys["fracture_onset_end_resistance_dissipated_fraction"] == 0.9
     # an opening time between two recorded ends belongs to the step that ends after it
-    assert energy_partition(t, dt, p, injected, dissipated, 2.2e-6, at_end)["fracture_onset_time_s"] == 2.5e-6
+    assert energy_partition(t, dt, p, injected, dissipated, 2.2e-6)["fracture_onset_time_s"] == 2.5e-6
     # no contact opened, or none by the last recorded step: the onset keys are nan, the first step's stay
     for onset in (np.nan, 9e-6):
-        keys = energy_partition(t, dt, p, injected, dissipated, onset, at_end)
+        keys = energy_partition(t, dt, p, injected, dissipated, onset)
         assert all(np.isnan(v) for k, v in keys.items() if k.startswith("fracture_onset_"))
         assert keys["first_step_dissipated_fraction"] == 0.25
-    nothing = energy_partition(t[:0], dt[:0], p[:0], injected[:0], dissipated[:0], np.nan, at_end[:0])
-    assert len(nothing) == 16 and all(np.isnan(v) for v in nothing.values())
+    nothing = energy_partition(t[:0], dt[:0], p[:0], injected[:0], dissipated[:0], np.nan)
+    assert len(nothing) == 12 and all(np.isnan(v) for v in nothing.values())
 
 
 def test_step_energies_are_the_differences_of_the_cumulative_columns():
     from hmdem.flow.simulation import RunRecord
 
     rec = RunRecord()
-    for t, p, e, d, d_end in ((1.0, 5.0, 2.0, 0.5, 0.25), (2.0, 7.0, 5.0, 3.0, 2.0)):
-        rec.rows.append((t, 1.0, p, 0.1, 0.0, 0.0, e, d, 0, "nominal", 0.0, d_end))
+    for t, p, e, d in ((1.0, 5.0, 2.0, 0.5), (2.0, 7.0, 5.0, 3.0)):
+        rec.rows.append((t, 1.0, p, 0.1, 0.0, 0.0, e, d, 0, "nominal", 0.0))
     t, dt, p, injected, dissipated = rec.step_energies()
     assert t.tolist() == [1.0, 2.0] and dt.tolist() == [1.0, 1.0] and p.tolist() == [5.0, 7.0]
     assert injected.tolist() == [2.0, 3.0] and dissipated.tolist() == [0.5, 2.5]
-    assert rec.step_dissipation_end_resistance().tolist() == [0.25, 1.75]
     assert all(len(a) == 0 for a in RunRecord().step_energies())
 
 

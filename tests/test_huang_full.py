@@ -253,26 +253,28 @@ def test_b3_two_way_smooth_where_one_way_drops(huang):
 def test_fractures_start_at_the_papers_injection_pressures(huang):
     # H7, Figs. 15b and 16b: A3's first contacts open at 393.4 kPa with 86 % of that step's
     # injection energy dissipated, B3's at 4076.1 kPa (decisions #69: the step at whose end the
-    # first contact counts as opened; #95: dE_v read through Eq. 27's resistances at the step's
-    # end). Pressures within 40 % (the digest's bound for a different packing, H4), the fraction
-    # within 15 points (H7). Measured 2026-12-01: A3 366 kPa at 2.9 us with 77.3 % dissipated
-    # (99.2 % by the solve's own fluxes), B3 3.54 MPa at 1.6 us, both in full 8e-7 s steps as the paper's
+    # first contact counts as opened). Pressures within 40 % (the digest's bound for a
+    # different packing, H4), the fraction within 15 points (H7). Measured 2026-11-27: A3
+    # 366 kPa at 2.9 us with 99.2 % dissipated (1.8 points inside the bound), B3 3.54 MPa at
+    # 1.6 us, both in full 8e-7 s steps as the paper's
     a3, b3 = huang("A3")[0], huang("B3")[0]
     assert a3["fracture_onset_injection_pressure_pa"] == pytest.approx(393.4e3, rel=0.4)
     assert b3["fracture_onset_injection_pressure_pa"] == pytest.approx(4076.1e3, rel=0.4)
-    assert abs(a3["fracture_onset_end_resistance_dissipated_fraction"] - 0.86) <= 0.15
+    assert abs(a3["fracture_onset_dissipated_fraction"] - 0.86) <= 0.15
 
 
+@pytest.mark.xfail(strict=True, raises=AssertionError,
+                   reason="known model discrepancy, issue 3 open: the first step dissipates 76 % of "
+                   "its 2.58 uJ at 5.26 kPa (paper 28 % of 2.5 uJ at 5.1 kPa), and the residual energy of the step "
+                   "that opens the first contact is 1.48 uJ in A3 and 629 uJ in B3 (paper 27.4 and 134.7 uJ), "
+                   "a ratio of ~430 against 4.9 (BENCHMARKS.md, decisions #69). Readings of dE_v at the step's end "
+                   "match A3's figures but are post hoc, and rejected (decisions #95)")
 def test_energy_partition_of_figs_15_and_16(huang):
-    # H7, read as the paper reads its energies (decisions #95): dE_v = sum (p_i - p_j)^2 / R_s dt,
-    # R_s each pipe's Eq. 27 resistance at the step's end. Measured 2026-12-01: A3's first step
-    # 30.4 % (paper 28 %), onset residuals 40.8 uJ (A3) and 213 uJ (B3), B3/A3 5.2 (paper 27.4 and
-    # 134.7 uJ, 4.9). By the solve's own fluxes it is 76 % and ~430 (strict xfail until this session)
     a3, b3 = huang("A3")[0], huang("B3")[0]
     # H7: with the port still air-filled, 28 % of the step's injection energy is dissipated
-    assert abs(a3["first_step_end_resistance_dissipated_fraction"] - 0.28) <= 0.15
+    assert abs(a3["first_step_dissipated_fraction"] - 0.28) <= 0.15
     # H7: as fracturing is about to occur, B3's residual energy is 4.9x A3's (within x2)
-    ratio = b3["fracture_onset_end_resistance_residual_energy_j"] / a3["fracture_onset_end_resistance_residual_energy_j"]
+    ratio = b3["fracture_onset_residual_energy_j"] / a3["fracture_onset_residual_energy_j"]
     assert 4.9 / 2 <= ratio <= 4.9 * 2
 
 

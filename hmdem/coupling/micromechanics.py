@@ -166,11 +166,11 @@ def fracture_guidance(opened_time: np.ndarray, pipe_domains: np.ndarray, wetted_
 
 
 STEP_ENERGY_KEYS = ("time_s", "step_s", "injection_pressure_pa", "injection_energy_j", "residual_energy_j",
-                    "dissipated_fraction", "end_resistance_residual_energy_j", "end_resistance_dissipated_fraction")
+                    "dissipated_fraction")
 
 
 def energy_partition(times: np.ndarray, steps: np.ndarray, injection_pressure: np.ndarray, injected: np.ndarray,
-                     dissipated: np.ndarray, onset_time: float, dissipated_end_resistance: np.ndarray) -> dict:
+                     dissipated: np.ndarray, onset_time: float) -> dict:
     """Summary keys for the per-step energy partition of seed 004 Figs. 15-16 (Eqs. 25-26;
     digest H7): the injection energy dE_in = p_in Q dt of one step, the residual energy
     dE_f = dE_in - dE_v left for compressing the fluid and moving the grains, and the
@@ -179,21 +179,17 @@ def energy_partition(times: np.ndarray, steps: np.ndarray, injection_pressure: n
     28 % dissipated); ``fracture_onset_*``, the step at whose end the first contact counted as
     opened (``onset_time``; A3: 393.4 kPa, 194.5 uJ, 86 %, dE_f 27.4 uJ; B3: 4076.1 kPa,
     dE_f 134.7 uJ). The paper's are full 8e-7 s steps; ``*_step_s`` says how long ours was.
-    ``*_end_resistance_*`` read dE_v as sum_k (p_i - p_j)^2 / R_s,k dt instead, with Eq. 27's
-    pipe resistances at the step's end, the state at which the paper reports them beside its
-    energies (decisions #95). That reading is a diagnostic of the paper's figures: its dE_f is
-    not the energy our step stored in the fluid and the grains (the first reading's is).
     Per recorded step: ``times`` (its end), ``steps`` (its length), ``injection_pressure``,
-    ``injected``, ``dissipated`` and ``dissipated_end_resistance`` [J per m of depth]. nan (null
-    in summary.json) where there is no such step."""
+    ``injected`` and ``dissipated`` [J per m of depth]. nan (null in summary.json) where there
+    is no such step."""
     t, nan = np.asarray(times, float), float("nan")
     later = np.flatnonzero(t >= onset_time) if np.isfinite(onset_time) else []
     keys = {}
     for name, k in (("first_step", 0 if len(t) else None), ("fracture_onset", later[0] if len(later) else None)):
         values = (nan,) * len(STEP_ENERGY_KEYS)
         if k is not None:
-            e_in, e_v, e_v_end = float(injected[k]), float(dissipated[k]), float(dissipated_end_resistance[k])
+            e_in, e_v = float(injected[k]), float(dissipated[k])
             values = (float(t[k]), float(steps[k]), float(injection_pressure[k]), e_in, e_in - e_v,
-                      e_v / e_in if e_in > 0 else nan, e_in - e_v_end, e_v_end / e_in if e_in > 0 else nan)
+                      e_v / e_in if e_in > 0 else nan)
         keys |= {f"{name}_{key}": value for key, value in zip(STEP_ENERGY_KEYS, values)}
     return keys

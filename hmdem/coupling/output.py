@@ -83,8 +83,7 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None, pac
         "lowest_path_resistance_gpa_s_per_m2": path / GPA,
         "dissipated_fraction": rec.dissipated_energy / rec.injection_energy if rec.injection_energy else float("nan"),
         # Figs. 15-16: one step's energies, with the port still air-filled and as the first contact opens
-        **energy_partition(*rec.step_energies(), chronology["first_opening_time_s"],
-                           rec.step_dissipation_end_resistance()),
+        **energy_partition(*rec.step_energies(), chronology["first_opening_time_s"]),
         "max_grain_displacement_m": float(np.linalg.norm(positions - initial_positions, axis=1).max()),
         "mean_pv_iterations": float(np.mean(cr.pv_iterations)) if cr.pv_iterations else 0.0,
         "max_pv_iterations": int(max(cr.pv_iterations)) if cr.pv_iterations else 0,

@@ -69,8 +69,6 @@ class RunRecord:
     unsettled_solves: int = 0  # solves whose shut front pipes cycled or ran out of passes (decisions #88)
     injection_energy: float = 0.0
     dissipated_energy: float = 0.0
-    # the same sum with each pipe's flux read as (p_i - p_j) / R_s at the step's end (decisions #95)
-    dissipated_energy_end_resistance: float = 0.0
     peak_injection_pressure: float = 0.0
     peak_compression: float = 0.0  # max over steps and domains of |p_i| / K_f,i (Eq. 3 mixture)
     max_mass_balance_error: float = 0.0
@@ -100,14 +98,6 @@ class RunRecord:
         t, dt, p, energy, dissipation = self.series("t", "dt", "p_in_mean", "energy", "dissipation")
         return t, dt, p, np.diff(energy, prepend=0.0), np.diff(dissipation, prepend=0.0)
 
-    def step_dissipation_end_resistance(self) -> np.ndarray:
-        """Each recorded step's dE_v = sum_k (p_i - p_j)^2 / R_s,k dt: Eq. 26 with Eq. 27's
-        q_ij = (p_i - p_j) / R_s, R_s each pipe's at the step's end (its Eq. 4 viscosity and, with
-        moving grains, its aperture), the step's pressures unchanged, front pipes it held shut
-        left out (decisions #95)."""
-        (cumulative,) = self.series("dissipation_end_resistance")
-        return np.diff(cumulative, prepend=0.0)
-
     def run_mass_balance_error(self, rate: float, t: float) -> float:
         """|stored + outflow - injected| / injected over the whole run (all steps' defects and
         the rounding of the stored pressures included)."""
@@ -115,7 +105,7 @@ class RunRecord:
         return abs(self.stored_volume + self.outflow_volume - injected) / injected if injected > 0 else 0.0
 
     columns = ("t", "dt", "p_in_mean", "q_in", "q_out", "saturation", "energy", "dissipation", "n_invaded", "limiter",
-               "wall_s", "dissipation_end_resistance")
+               "wall_s")
 
 
 class FlowModel:
@@ -476,16 +466,11 @@ class FlowModel:
         if self.setup.two_phase:
             state.saturation = np.clip(state.saturation + dt * fill / self.volume, 0.0, 1.0)
             self._mark_filled(state)
-        self._end_step(state, dt)  # moving grains rescale the saturations and set new apertures
-        # Eq. 26 with Eq. 27's q_ij = (p_i - p_j) / R_s, R_s the pipes' at the step's end, the
-        # resistances the paper reports beside its energies (decisions #95); a front pipe the
-        # step held shut carried nothing
-        end_conductance = np.where(sol.blocked, 0.0, self.pipe_properties(state)[0])
-        rec.dissipated_energy_end_resistance += float(np.sum(end_conductance * dp * dp)) * dt
+        self._end_step(state, dt)
         rec.steps += 1
         rec.eq18_steps += limiter == "eq18"
         rec.eq19_steps += limiter == "eq19"
         sat = float(np.sum(state.saturation * self.volume) / np.sum(self.volume))
         rec.rows.append((state.t, dt, p_in, self.setup.rate, q_out, sat, rec.injection_energy,
                          rec.dissipated_energy, int(state.invaded.sum()), limiter,
-                         round(time.perf_counter() - rec.wall_start, 3), rec.dissipated_energy_end_resistance))
+                         round(time.perf_counter() - rec.wall_start, 3)))
