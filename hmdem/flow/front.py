@@ -46,16 +46,23 @@ def blocked_front_step(dt: float, margin_start: np.ndarray, margin_end: np.ndarr
     picoseconds, and such a step carries no information) set no limit, but the others still do.
     Returns dt unchanged when no other pipe would open within dt.
     """
-    counted = ~at_threshold_to_roundoff(margin_start, margin_end)
-    crossing = (margin_end > 0) & (margin_start <= 0) & counted
-    frac = -margin_start[crossing] / (margin_end[crossing] - margin_start[crossing])
+    frac = crossing_fraction(margin_start, margin_end)
+    frac = frac[np.isfinite(frac) & (frac >= THRESHOLD_ROUNDOFF)]
     return dt if frac.size == 0 else min(dt, chi * dt * float(frac.min()))
+
+
+def crossing_fraction(margin_start: np.ndarray, margin_end: np.ndarray) -> np.ndarray:
+    """The fraction of the step at which each shut pipe's p_u - p_d + p_c, taken linearly from
+    ``margin_start`` (<= 0) to ``margin_end``, reaches 0 (Eq. 19's interpolation); inf for the
+    pipes it does not open."""
+    crossing = (margin_end > 0) & (margin_start <= 0)
+    frac = np.full(np.shape(margin_start), np.inf)
+    frac[crossing] = -margin_start[crossing] / (margin_end[crossing] - margin_start[crossing])
+    return frac
 
 
 def at_threshold_to_roundoff(margin_start: np.ndarray, margin_end: np.ndarray) -> np.ndarray:
     """Shut pipes that would open within THRESHOLD_ROUNDOFF of the step (linearly from
     ``margin_start`` to ``margin_end``): at their threshold, they set no step (Eq. 19 and its
     bisection, :meth:`hmdem.flow.simulation.FlowModel._bisect_first_opening`)."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        frac = -margin_start / (margin_end - margin_start)
-    return (margin_end > 0) & (margin_start <= 0) & (frac < THRESHOLD_ROUNDOFF)
+    return crossing_fraction(margin_start, margin_end) < THRESHOLD_ROUNDOFF
