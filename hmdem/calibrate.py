@@ -26,7 +26,8 @@ from pathlib import Path
 
 from . import __version__
 from .cli import (OneLineParser, add_contact_arguments, contact_gap_fraction, dispatch, grain_count, interrupted_status,
-                  new_run_directory, non_negative_int, number_in, positive_number, read_compacted_packing, stop_note)
+                  near_contacts_checked, new_run_directory, non_negative_int, number_in, positive_number,
+                  read_compacted_packing, stop_note)
 from .dem.biaxial import FIT_STRAIN
 from .network.contact_graph import NEAR_CONTACT_GAP
 from .rundir import atomic_run_directory
@@ -304,6 +305,11 @@ def run_darcy_command(args, argv) -> int:
     out = new_run_directory(args.out, args.command)
     t0 = time.perf_counter()
     law = ApertureLaw()
+    # the stored sample's network first (no DEM): a --contact-gap its near contacts cannot take is
+    # one line before minutes of compaction (a new-user pass: a traceback after them)
+    given_gap = None if args.contact_gap == NEAR_CONTACT_GAP else args.contact_gap
+    with near_contacts_checked(given_gap):
+        stored = stored_permeability(packing, law, args.contact_gap)
 
     sweep = []  # the stresses done, kept as they finish
     bar = None if args.quiet else CompactionBar()
@@ -318,9 +324,9 @@ def run_darcy_command(args, argv) -> int:
 
     status = "finished"
     try:
-        permeability_sweep(args.stresses, args.n, args.seed, k_n=args.contact_stiffness, law=law,
-                           contact_gap=args.contact_gap, progress=say,
-                           compaction_progress=bar)
+        with near_contacts_checked(given_gap):
+            permeability_sweep(args.stresses, args.n, args.seed, k_n=args.contact_stiffness, law=law,
+                               contact_gap=args.contact_gap, progress=say, compaction_progress=bar)
     except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the stresses done, and the stored packing (no DEM)
         status = "interrupted"
     finally:
@@ -329,7 +335,6 @@ def run_darcy_command(args, argv) -> int:
     if status == "interrupted":
         print(f"{PROG}: interrupted after {len(sweep)} of {len(args.stresses)} stresses; writing those",
               file=sys.stderr)
-    stored = stored_permeability(packing, law, args.contact_gap)
     rows = [r.row() for r in sweep]
     for r in rows:
         r["ratio_to_kozeny_carman"] = r["permeability"] / r["kozeny_carman"]

@@ -191,6 +191,13 @@ def sigterm_as_interrupt():
         signal.signal(signal.SIGTERM, previous)
 
 
+def interrupt_reason() -> str:
+    """A stopped run's ``status_message``: the signal that stopped it (a new-user pass found the
+    message empty; the exit status says the same, 130 or 143)."""
+    signum = signal.Signals(int(_last_interrupt["signal"]))
+    return "stopped by Ctrl-C (SIGINT)" if signum == signal.SIGINT else f"stopped by {signum.name}"
+
+
 def interrupted_status() -> int:
     """Exit status of an interrupted command, the shell's 128 + the signal: 130 after Ctrl-C
     (SIGINT), 143 after a batch system's SIGTERM."""
@@ -284,6 +291,26 @@ def dispatch(prog: str, parser: argparse.ArgumentParser, args, commands: dict) -
             _last_interrupt["signal"] = signal.SIGINT  # the next command starts from Ctrl-C's status
     parser.print_help()
     return 2
+
+
+@contextlib.contextmanager
+def near_contacts_checked(contact_gap: float | None = None):
+    """The network's near contacts (gap up to the case's contact gap) off the Delaunay
+    triangulation, and a network with no inflow or outflow domains, which the packing file's
+    own checks cannot see: one line about --packing, or about --contact-gap when it was given
+    (a new-user pass: --contact-gap 1 on the shipped sample was blamed on a --packing never given)."""
+    from .network.boundaries import NoBoundaryDomains
+    from .network.contact_graph import ContactsOffTriangulation
+
+    try:
+        yield
+    except ContactsOffTriangulation as exc:
+        if contact_gap is not None:
+            raise InputError(f"--contact-gap: at {contact_gap:g} the packing's near contacts become pipes, and "
+                             f"{exc}; a smaller gap leaves them out") from None
+        raise InputError(f"--packing: with its near contacts, {exc}") from None
+    except NoBoundaryDomains as exc:
+        raise InputError(f"--packing: {exc}") from None
 
 
 def new_run_directory(out: Path | None, name: str) -> Path:

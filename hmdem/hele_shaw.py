@@ -8,7 +8,6 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
 import os
 import sys
 import time
@@ -18,8 +17,9 @@ from pathlib import Path
 from . import __version__
 from .cases import CASES, default_packing_path
 from .cli import (InputError, OneLineParser, add_contact_arguments, check_aperture_fits_grains, contact_gap_fraction,
-                  dispatch, interrupted_status, local_damping, new_run_directory, non_negative_int, number_in,
-                  positive_int, positive_number, read_compacted_packing, read_packing, relative_tolerance)
+                  dispatch, interrupt_reason, interrupted_status, local_damping, near_contacts_checked,
+                  new_run_directory, non_negative_int, number_in, positive_int, positive_number,
+                  read_compacted_packing, read_packing, relative_tolerance)
 from .flow.darcy_transient import STEADY_T_D, read_darcy_test
 from .flow.fluids import WEAK_COMPRESSION
 from .interrupts import deferred_interrupts
@@ -265,22 +265,6 @@ class FrontProgress:
         self.bar.close()
 
 
-@contextlib.contextmanager
-def near_contacts_checked():
-    """The network's near contacts (gap up to the case's contact gap) off the Delaunay
-    triangulation, and a network with no inflow or outflow domains, which the packing file's
-    own checks cannot see: one line about --packing."""
-    from .network.boundaries import NoBoundaryDomains
-    from .network.contact_graph import ContactsOffTriangulation
-
-    try:
-        yield
-    except ContactsOffTriangulation as exc:
-        raise InputError(f"--packing: with its near contacts, {exc}") from None
-    except NoBoundaryDomains as exc:
-        raise InputError(f"--packing: {exc}") from None
-
-
 def recorded_argv(args) -> list[str]:
     """The arguments config.toml records: ``args.argv``, set by :func:`main` (also when a YADE
     script calls it) and by the sweep runner, else the process's own."""
@@ -317,6 +301,8 @@ def run_linear(args) -> int:
     bar = None if args.quiet else FrontProgress(case.name, sc.setup)
     snapshots = None if args.snapshots is None else SnapshotRecorder(args.snapshots)
     state, rec = model.run(progress=each_step(bar, snapshots))
+    if rec.status == "interrupted":
+        rec.message = interrupt_reason()
     with deferred_interrupts():  # the run is over: a signal now stops the command once it is written
         if bar is not None:
             bar.close(model, state)
@@ -404,6 +390,29 @@ COUPLING_FLAGS = (
 )
 
 
+# flags of the P-V iteration, which the --one-way variant does not run
+PV_ONLY_FLAGS = ("pv_tol", "pv_max_iter", "pv_test", "pv_grow_after", "pocket_newton", "pv_reuse_steps",
+                 "pv_max_columns", "skeleton_newton", "replica")
+
+
+def unused_with_one_way(args) -> list[str]:
+    """The P-V flags given to a --one-way run, as written (a new-user pass: --pv-continue --one-way
+    was taken without a word, and did nothing)."""
+    given = [f"--{'no-' * (getattr(args, flag) is False)}{flag.replace('_', '-')}" for flag in PV_ONLY_FLAGS
+             if getattr(args, flag) is not None]
+    return given + ["--pv-continue"] * args.pv_continue if args.one_way else []
+
+
+def check_inlet_perimeter(sc) -> None:
+    """--sigma, the Eq. 24 inlet perimeter that sets Q from Ca*, is a port's inside the sample:
+    from one diameter of its smallest grain to the sample's own perimeter (a new-user pass: 1 m
+    on the 1.25 mm sample ran to 11 GPa and exit status 0)."""
+    smallest, perimeter = 2.0 * float(sc.packing.radii.min()), 2.0 * float(sum(sc.packing.box))
+    if not smallest <= sc.sigma <= perimeter:
+        raise InputError(f"--sigma: the inlet perimeter must be from the smallest grain's diameter, {smallest:.3g} m, "
+                         f"to the sample's perimeter, {perimeter:.3g} m; got {sc.sigma:g}")
+
+
 def run_radial(args) -> int:
     from dataclasses import replace as replace_case
 
@@ -421,12 +430,13 @@ def run_radial(args) -> int:
     case = RADIAL_CASES[args.case]
     if args.dt is not None:
         case = replace_case(case, dt=args.dt)
-    with near_contacts_checked():
+    with near_contacts_checked(args.contact_gap):
         sc = build_radial_scenario(case, packing, ca_star=args.ca_star, viscosity_ratio=args.viscosity_ratio,
                                    one_way=args.one_way, sigma=args.sigma, fixed_port=args.fixed_port,
                                    grain_density=args.grain_density, contact_gap=args.contact_gap,
                                    friction=args.friction, stiffness_ratio=args.stiffness_ratio,
                                    boundary_hold=args.boundary)
+    check_inlet_perimeter(sc)
     for flag, field, convert in COUPLING_FLAGS:
         if getattr(args, flag) is not None:
             setattr(sc.coupling, field, convert(getattr(args, flag)))
@@ -435,6 +445,9 @@ def run_radial(args) -> int:
         sc.setup.t_max = args.t_max
     if args.max_steps is not None:
         sc.setup.max_steps = args.max_steps
+    unused = unused_with_one_way(args)
+    if unused:
+        print(f"{PROG}: warning: {', '.join(unused)} not used: --one-way runs no P-V iteration", file=sys.stderr)
     warning = busy_cores_warning(args.threads)
     if warning:
         print(warning, file=sys.stderr)
@@ -443,6 +456,8 @@ def run_radial(args) -> int:
     bar = None if args.quiet else FrontProgress(case.name, sc.setup)
     snapshots = None if args.snapshots is None else SnapshotRecorder(args.snapshots)
     state, rec = model.run(progress=each_step(bar, snapshots))
+    if rec.status == "interrupted":
+        rec.message = interrupt_reason()
     with deferred_interrupts():  # the run is over: a signal now stops the command once it is written
         if bar is not None:
             bar.close(model, state)

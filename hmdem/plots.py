@@ -57,10 +57,12 @@ def plot_pattern(path, net: Network, saturation: np.ndarray, title: str, radii=N
     if overlay is not None and len(overlay):
         ax.add_collection(LineCollection(np.asarray(overlay) * 1e3, colors="tab:red", linewidths=1.2,
                                          label=f"opened contacts ({len(overlay)})"))
-    for ids, colour, label in ((net.inlet_domains, "tab:green", "inflow"),
-                               (net.outlet_domains, "tab:purple", "outflow")):
+    # the inflow marker is ringed in white: a radial run's single port sits on the dark invaded zone
+    for ids, marker, colour, label in ((net.inlet_domains, "o", "tab:green", "inflow"),
+                                       (net.outlet_domains, ".", "tab:purple", "outflow")):
         c = net.domain_centroid[ids] * 1e3
-        ax.plot(c[:, 0], c[:, 1], ".", color=colour, ms=3, label=label)
+        ax.plot(c[:, 0], c[:, 1], marker, ls="none", color=colour, ms=4 if marker == "o" else 3,
+                mec="white" if marker == "o" else colour, mew=0.7, label=label)
     fig.colorbar(pc, ax=ax, label="invading saturation S")
     ax.legend(loc="upper right", fontsize=7)
     if note:

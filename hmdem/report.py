@@ -155,11 +155,12 @@ def write_run(out: Path, sc, model, state, rec, seed: int, argv, summary_extra: 
         marked = {"time": summary["early_peak_time_s"], "pressure": summary["early_peak_injection_pressure_pa"]}
         plot_pressure(tmp / "pressure.png", net, state.pressure, *rec.injection_pressure(),
                       f"{sc.case.name}: mean injection pressure{stopped}", marked if summary["early_peak_fell"] else None)
-        write_vtu(tmp / "domains.vtu", net, state)
+        write_vtu(tmp / "domains.vtu", net, state, sc.packing_radii)
         if snapshots is not None:
             # the final state closes the series as the files above have it (a run stopped inside
             # a step that keeps no snapshot holds a trial's grains at the last step's time)
-            write_series(tmp, net, [s for s in snapshots if s.t != state.t] + [take(model, state)])
+            write_series(tmp, net, [s for s in snapshots if s.t != state.t] + [take(model, state)],
+                         sc.packing_radii)
         if extra_files is not None:
             extra_files(tmp)
     return summary
@@ -183,6 +184,7 @@ def case_title(case) -> str:
     return f"{case.title}, with {listed} changed"
 
 
-def write_vtu(path: Path, net, state) -> None:
-    """Domain polygons (as their triangles) with pressure, saturation and invasion time for ParaView."""
-    domain_mesh(net, net.points, state.pressure, state.saturation, state.invasion_time).write(path)
+def write_vtu(path: Path, net, state, radii=None) -> None:
+    """Domain polygons (as their triangles) with pressure, saturation and invasion time for
+    ParaView, on the grain centres (with their ``radii``, m)."""
+    domain_mesh(net, net.points, state.pressure, state.saturation, state.invasion_time, radii).write(path)

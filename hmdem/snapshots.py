@@ -58,7 +58,13 @@ def take(model, state) -> Snapshot:
     return Snapshot(state.t, state.pressure.copy(), state.saturation.copy(), state.invasion_time.copy(), **grains)
 
 
-def domain_mesh(net, points: np.ndarray, pressure, saturation, invasion_time):
+def grain_radii(radii) -> dict:
+    """Point data giving each grain centre its ``radius`` [m], so that ParaView can draw the discs
+    (a Glyph filter: sphere, scaled by radius); none where the network has no grains."""
+    return {} if radii is None else {"radius": np.asarray(radii, float)}
+
+
+def domain_mesh(net, points: np.ndarray, pressure, saturation, invasion_time, radii=None):
     """meshio mesh of the domain polygons (as their triangles) with pressure, saturation and
     invasion time (-1 where not invaded) per cell, on the grain centres ``points``."""
     import meshio
@@ -70,15 +76,17 @@ def domain_mesh(net, points: np.ndarray, pressure, saturation, invasion_time):
     t_inv = np.where(np.isfinite(invasion_time), invasion_time, -1.0)
     return meshio.Mesh(np.c_[points, np.zeros(len(points))], [("triangle", net.triangles[inside])],
                        cell_data={"pressure": [pressure[domain]], "saturation": [saturation[domain]],
-                                  "invasion_time": [t_inv[domain]], "domain": [domain]})
+                                  "invasion_time": [t_inv[domain]], "domain": [domain]},
+                       point_data=grain_radii(radii))
 
 
-def pipe_mesh(net, points: np.ndarray, aperture: np.ndarray, opened: np.ndarray):
+def pipe_mesh(net, points: np.ndarray, aperture: np.ndarray, opened: np.ndarray, radii=None):
     """meshio mesh of the pipes as lines between their two grains, with aperture and opened."""
     import meshio
 
     return meshio.Mesh(np.c_[points, np.zeros(len(points))], [("line", net.pipe_grains)],
-                       cell_data={"aperture": [aperture], "opened": [opened.astype(np.int8)]})
+                       cell_data={"aperture": [aperture], "opened": [opened.astype(np.int8)]},
+                       point_data=grain_radii(radii))
 
 
 def write_collection(path: Path, entries: list[tuple[float, str]]) -> None:
@@ -90,19 +98,20 @@ def write_collection(path: Path, entries: list[tuple[float, str]]) -> None:
     path.write_text("\n".join(lines))
 
 
-def write_series(directory: Path, net, snapshots: list[Snapshot]) -> None:
-    """``snapshots/domains_NNNN.vtu`` (and ``contacts_NNNN.vtu``) with their .pvd collections."""
+def write_series(directory: Path, net, snapshots: list[Snapshot], radii=None) -> None:
+    """``snapshots/domains_NNNN.vtu`` (and ``contacts_NNNN.vtu``) with their .pvd collections;
+    ``radii``: the grains' (m), written with their centres."""
     folder = directory / "snapshots"
     folder.mkdir()
     domains, contacts = [], []
     for k, snap in enumerate(snapshots):
         points = net.points if snap.points is None else snap.points
         name = f"snapshots/domains_{k:04d}.vtu"
-        domain_mesh(net, points, snap.pressure, snap.saturation, snap.invasion_time).write(directory / name)
+        domain_mesh(net, points, snap.pressure, snap.saturation, snap.invasion_time, radii).write(directory / name)
         domains.append((snap.t, name))
         if snap.pipe_aperture is not None:
             name = f"snapshots/contacts_{k:04d}.vtu"
-            pipe_mesh(net, points, snap.pipe_aperture, snap.pipe_opened).write(directory / name)
+            pipe_mesh(net, points, snap.pipe_aperture, snap.pipe_opened, radii).write(directory / name)
             contacts.append((snap.t, name))
     write_collection(directory / "domains.pvd", domains)
     if contacts:

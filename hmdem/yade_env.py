@@ -16,6 +16,8 @@ import io
 import os
 import sys
 
+from .interrupts import deferred_interrupts
+
 KNOWN_PREFIXES = (
     "/usr/lib/x86_64-linux-gnu/yade-double/py",
     "/usr/lib/aarch64-linux-gnu/yade-double/py",
@@ -71,8 +73,11 @@ def import_yade(threads: int | None = None):
         sys.modules.pop("yade", None)  # a failed attempt may have left Debian's broken namespace
         try:
             # YADE prints "Using python version: ..." on import; it says nothing a run needs and
-            # would break --quiet (a run prints just its result line), so it is dropped
-            with contextlib.redirect_stdout(io.StringIO()):
+            # would break --quiet (a run prints just its result line), so it is dropped. Ctrl-C and
+            # SIGTERM are held through the import: raised inside YADE's boost-python module set-up
+            # they aborted the process or left a SystemError traceback (a new-user pass: 13 of 24
+            # signals sent in that second); held, they stop the command once YADE is in
+            with contextlib.redirect_stdout(io.StringIO()), deferred_interrupts():
                 yade = importlib.import_module("yade")
         except ImportError:
             continue

@@ -399,6 +399,15 @@ def test_yade_contact_forces_are_k_n_times_the_stored_overlaps():
     assert np.all(force[overlap < -1e-12] == 0.0)
 
 
+def test_darcy_contact_gap_its_sample_cannot_take_is_one_line_before_any_compaction(tmp_path, capsys):
+    # a new-user pass: --contact-gap 1 gave a traceback after the sweep's compactions; the stored
+    # sample's network (144 contacts off its triangulation at that gap) is now built first
+    out = tmp_path / "darcy"
+    assert main(["darcy", "--contact-gap", "1", "--out", str(out), "--quiet"]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "--contact-gap: at 1 " in lines[0] and not out.exists()
+
+
 @pytest.mark.yade
 def test_near_contact_gap_038_gives_the_papers_network_and_permeability():
     # decisions #73. Seed 004 §4.2: the Huang sample's network has 2,096 domains, 3,490 pipes and

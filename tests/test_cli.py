@@ -732,6 +732,83 @@ def test_interrupted_radial_run_keeps_the_last_accepted_grains(tmp_path, monkeyp
     np.testing.assert_allclose(volumes, np.load(out / "network.npz")["domain_volume"], rtol=1e-12)
 
 
+def test_yade_import_holds_an_interrupt_until_yade_is_in(monkeypatch, terminal_sigint):
+    # a new-user pass: Ctrl-C or SIGTERM in the second YADE takes to import aborted the process
+    # (boost-python set-up raising from a Python handler) or left a SystemError traceback
+    import signal
+    import types
+
+    import hmdem.yade_env as yade_env
+
+    finished = []
+
+    def importing(name):  # the signal arrives half-way through the import
+        signal.raise_signal(signal.SIGINT)
+        finished.append(name)
+        return types.SimpleNamespace(O=object())
+
+    monkeypatch.delitem(sys.modules, "yade", raising=False)
+    monkeypatch.setattr(sys, "path", list(sys.path))
+    monkeypatch.setattr(yade_env, "candidate_paths", lambda: ["/nowhere"])
+    monkeypatch.setattr(yade_env.importlib, "import_module", importing)
+    with pytest.raises(KeyboardInterrupt):
+        yade_env.import_yade()
+    assert finished == ["yade"]  # delivered once the import was done, not inside it
+
+
+def test_interrupted_status_message_names_the_signal():
+    import signal
+
+    from hmdem.cli import interrupt_reason, record_interrupt
+
+    try:
+        record_interrupt(signal.SIGTERM)
+        assert interrupt_reason() == "stopped by SIGTERM"
+    finally:
+        record_interrupt(signal.SIGINT)
+    assert interrupt_reason() == "stopped by Ctrl-C (SIGINT)"
+
+
+@pytest.mark.parametrize("argv, parameter", [
+    (["radial", "--case", "A3", "--contact-gap", "1"], "--contact-gap: at 1 "),  # the shipped sample: 144 off
+    (["radial", "--case", "A3", "--sigma", "1"], "--sigma: "),  # Σ = 1 m on a 1.25 mm sample
+    (["radial", "--case", "A3", "--sigma", "1e-9"], "--sigma: "),
+])
+def test_radial_names_the_parameter_its_network_or_rate_cannot_take(argv, parameter, tmp_path, capsys):
+    # a new-user pass: --contact-gap 1 was blamed on a --packing never given; --sigma 1 ran to
+    # 11 GPa and exit status 0
+    out = tmp_path / "run"
+    assert main([*argv, "--out", str(out), "--quiet"]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].split(": ", 1)[1].startswith(parameter)
+    assert not out.exists()
+
+
+def test_one_way_names_the_p_v_flags_it_does_not_use():
+    # a new-user pass: --pv-continue --one-way was taken without a word
+    from hmdem.hele_shaw import build_parser, unused_with_one_way
+
+    def unused(*flags):
+        return unused_with_one_way(build_parser().parse_args(["radial", *flags]))
+
+    assert unused("--one-way", "--pv-continue", "--pv-tol", "1e-2", "--no-replica", "--damping", "0.5") == [
+        "--pv-tol", "--no-replica", "--pv-continue"]
+    assert unused("--one-way", "--one-way-volume", "lagged", "--dem-cycles", "100") == []
+    assert unused("--pv-continue", "--pv-tol", "1e-2") == []  # the two-way model iterates
+
+
+def test_radial_title_says_which_of_the_cases_settings_were_changed():
+    # a new-user pass: A3 at M = 1000 (18 cP) was titled "water-glycerol (5 cP)"
+    from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario
+
+    def title(**changes):
+        return build_radial_scenario(RADIAL_CASES["A3"], **changes).case.title
+
+    assert title() == "Huang A3: water-glycerol (5 cP) into air, movable grains"
+    assert title(viscosity_ratio=1000.0) == "Huang A3: water-glycerol (18 cP) into air, movable grains, with M changed"
+    assert title(ca_star=5.0).endswith(", with Ca* changed")
+
+
 def test_one_way_volume_needs_one_way(tmp_path, capsys):
     out = tmp_path / "run"
     assert main(["radial", "--case", "B3", "--one-way-volume", "lagged", "--out", str(out)]) == 2

@@ -53,8 +53,15 @@ class RadialCase:
 
     @property
     def title(self) -> str:
-        return (f"Huang {self.name}: water-glycerol ({self.viscosity_inv / CP:g} cP) into air, "
-                f"movable grains")
+        """The case's title with its own viscosity, saying which of the named case's M and Ca*
+        the command changed (a new-user pass: an 18 cP run was titled "(5 cP)")."""
+        title = f"Huang {self.name}: water-glycerol ({self.viscosity_inv / CP:.3g} cP) into air, movable grains"
+        named = RADIAL_CASES.get(self.name)
+        if named is None:
+            return title
+        changed = [what for what, differs in (("M", self.viscosity_inv != named.viscosity_inv),
+                                               ("Ca*", self.ca_star != named.ca_star)) if differs]
+        return f"{title}, with {' and '.join(changed)} changed" if changed else title
 
 
 RADIAL_CASES = {
@@ -152,6 +159,7 @@ def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, 
     length = float(pk.box[0])
     sigma = PAPER_SIGMA_OVER_LENGTH * length if sigma is None else sigma
     ca = case.ca_star if ca_star is None else ca_star
+    case = replace(case, viscosity_inv=eta_inv, ca_star=ca)  # the run's own, as its title says
     rate = rate_from_ca_star(ca, fluids, sigma, length, case.mean_aperture)  # ā = a0 (decisions #21)
     setup = FlowSetup(fluids, rate, case.dt)
     coupling = CouplingSetup(aperture_law=law, one_way=one_way, **dict(case.coupling_defaults))
