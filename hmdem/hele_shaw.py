@@ -271,6 +271,18 @@ def recorded_argv(args) -> list[str]:
     return getattr(args, "argv", sys.argv[1:])
 
 
+def run_watched(model, name: str, setup, args):
+    """``model.run()`` with the progress bar (unless --quiet) and the --snapshots recorder the
+    flags ask for: (state, record, bar, snapshots). An interrupted run's ``status_message``
+    names the signal that stopped it."""
+    bar = None if args.quiet else FrontProgress(name, setup)
+    snapshots = None if args.snapshots is None else SnapshotRecorder(args.snapshots)
+    state, rec = model.run(progress=each_step(bar, snapshots))
+    if rec.status == "interrupted":
+        rec.message = interrupt_reason()
+    return state, rec, bar, snapshots
+
+
 def run_linear(args) -> int:
     """One linear run from parsed arguments; config.toml records :func:`recorded_argv`."""
     from .report import dimension_note, packing_record, write_run
@@ -298,11 +310,7 @@ def run_linear(args) -> int:
         print(f"explicit scheme: stopping after {EXPLICIT_DEFAULT_MAX_STEPS} steps (set --max-steps or --t-max)",
               file=sys.stderr)
     model = FlowModel(sc.net, sc.setup)
-    bar = None if args.quiet else FrontProgress(case.name, sc.setup)
-    snapshots = None if args.snapshots is None else SnapshotRecorder(args.snapshots)
-    state, rec = model.run(progress=each_step(bar, snapshots))
-    if rec.status == "interrupted":
-        rec.message = interrupt_reason()
+    state, rec, bar, snapshots = run_watched(model, case.name, sc.setup, args)
     with deferred_interrupts():  # the run is over: a signal now stops the command once it is written
         if bar is not None:
             bar.close(model, state)
@@ -453,11 +461,7 @@ def run_radial(args) -> int:
         print(warning, file=sys.stderr)
     grains = start_grains(sc, threads=args.threads)
     model = CoupledFlowModel(sc.net, sc.setup, grains, sc.coupling)
-    bar = None if args.quiet else FrontProgress(case.name, sc.setup)
-    snapshots = None if args.snapshots is None else SnapshotRecorder(args.snapshots)
-    state, rec = model.run(progress=each_step(bar, snapshots))
-    if rec.status == "interrupted":
-        rec.message = interrupt_reason()
+    state, rec, bar, snapshots = run_watched(model, case.name, sc.setup, args)
     with deferred_interrupts():  # the run is over: a signal now stops the command once it is written
         if bar is not None:
             bar.close(model, state)
