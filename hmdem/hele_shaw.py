@@ -88,8 +88,12 @@ def build_parser() -> argparse.ArgumentParser:
     rad.add_argument("--case", choices=RADIAL_NAMES, default="A1", help="A1, A3 (5 cP), B1, B3 (176 cP) (default A1)")
     rad.add_argument("--viscosity-ratio", type=viscosity_ratio,
                      help="M = eta_inv / eta_air in [1e-6, 1e6]; eta_inv = M x 0.018 cP")
-    rad.add_argument("--ca-star", type=modified_capillary_number,
-                     help="modified capillary number Ca* (seed 004 Eq. 24), in [1e-10, 1e4]")
+    rad_rate = rad.add_mutually_exclusive_group()
+    rad_rate.add_argument("--ca-star", type=modified_capillary_number,
+                          help="modified capillary number Ca* (seed 004 Eq. 24), in [1e-10, 1e4]; Q follows from it")
+    rad_rate.add_argument("--rate", type=positive_number,
+                          help="injection rate Q [m^3/s per metre of cell depth] instead; its Ca* (Eq. 24, with "
+                               "--sigma) must lie in --ca-star's range")
     rad.add_argument("--sigma", type=positive_number,
                      help="inlet perimeter Sigma of Ca* [m] (default 0.2 x sample side: the paper's 0.25 mm of "
                           "1.25 mm; the injection domain's own perimeter is in summary.json)")
@@ -201,8 +205,13 @@ def check_ca_star_bounds(args, case, ca_star: float) -> None:
     bound's reach (a new-user pass; decisions #94)."""
     if args.rate is None and args.mean_aperture is None:
         return  # Ca* is --ca-star's, or the named case's
-    flags = given_flags(args, ("rate", "mean_aperture", "viscosity_ratio"))
-    if case.two_phase and not within_powers_of_ten(ca_star, LOG_CA_STAR_RANGE):
+    if case.two_phase:
+        require_ca_star_in_range(given_flags(args, ("rate", "mean_aperture", "viscosity_ratio")), ca_star)
+
+
+def require_ca_star_in_range(flags: list[str], ca_star: float) -> None:
+    """An :class:`InputError` naming ``flags`` when the Ca* they give leaves ``--ca-star``'s range."""
+    if not within_powers_of_ten(ca_star, LOG_CA_STAR_RANGE):
         raise InputError(f"{', '.join(flags)}: must give a Ca* (Eq. 24) in [1e{LOG_CA_STAR_RANGE[0]:g}, "
                          f"1e{LOG_CA_STAR_RANGE[1]:g}], --ca-star's range; these give {ca_star:.3g}")
 
@@ -411,6 +420,27 @@ def unused_with_one_way(args) -> list[str]:
     return given + ["--pv-continue"] * args.pv_continue if args.one_way else []
 
 
+# nominal flow steps to fill a radial sample's pores beyond which a run warns: the named cases
+# take 3,000-5,000 (A1: 0.05 s at 1e-5 s; B3: 2.5 ms at 8e-7 s), and each step runs the DEM over it
+MANY_NOMINAL_STEPS = 1e6
+
+
+def long_fill_warning(sc) -> str | None:
+    """A warning when the injection rate fills the sample's pores in more than
+    :data:`MANY_NOMINAL_STEPS` nominal flow steps and neither --t-max nor --max-steps ends the run
+    sooner (a new-user pass: A1 at Ca* 1e-3 fills in ~80 s of simulated time, 8e6 steps, weeks of
+    DEM, behind a bar at 0 %). The DEM resolves the grains' inertia over every step, so a longer
+    --dt does not make such a run much cheaper."""
+    setup = sc.setup
+    fill_time = float(sc.net.domain_volume.sum()) / setup.rate
+    steps = fill_time / setup.dt
+    if min(steps, setup.max_steps, setup.t_max / setup.dt) <= MANY_NOMINAL_STEPS:
+        return None
+    return (f"{PROG}: warning: at Q = {setup.rate:.3g} m^2/s (Ca* {sc.ca_star:.3g}) the pores take {fill_time:.3g} s "
+            f"to fill, {steps:.2g} flow steps of {setup.dt:g} s, where the named cases take 3,000-5,000; "
+            f"--t-max or --max-steps bounds the run")
+
+
 def check_inlet_perimeter(sc) -> None:
     """--sigma, the Eq. 24 inlet perimeter that sets Q from Ca*, is a port's inside the sample:
     from one diameter of its smallest grain to the sample's own perimeter (a new-user pass: 1 m
@@ -439,12 +469,15 @@ def run_radial(args) -> int:
     if args.dt is not None:
         case = replace_case(case, dt=args.dt)
     with near_contacts_checked(args.contact_gap):
-        sc = build_radial_scenario(case, packing, ca_star=args.ca_star, viscosity_ratio=args.viscosity_ratio,
+        sc = build_radial_scenario(case, packing, ca_star=args.ca_star, rate=args.rate,
+                                   viscosity_ratio=args.viscosity_ratio,
                                    one_way=args.one_way, sigma=args.sigma, fixed_port=args.fixed_port,
                                    grain_density=args.grain_density, contact_gap=args.contact_gap,
                                    friction=args.friction, stiffness_ratio=args.stiffness_ratio,
                                    boundary_hold=args.boundary)
     check_inlet_perimeter(sc)
+    if args.rate is not None:
+        require_ca_star_in_range(given_flags(args, ("rate", "viscosity_ratio", "sigma")), sc.ca_star)
     for flag, field, convert in COUPLING_FLAGS:
         if getattr(args, flag) is not None:
             setattr(sc.coupling, field, convert(getattr(args, flag)))
@@ -457,7 +490,7 @@ def run_radial(args) -> int:
     if unused:
         print(f"{PROG}: warning: {', '.join(unused)} not used: --one-way runs no P-V iteration", file=sys.stderr)
     warning = busy_cores_warning(args.threads)
-    if warning:
+    for warning in filter(None, (long_fill_warning(sc), warning)):
         print(warning, file=sys.stderr)
     grains = start_grains(sc, threads=args.threads)
     model = CoupledFlowModel(sc.net, sc.setup, grains, sc.coupling)

@@ -773,6 +773,7 @@ def test_interrupted_status_message_names_the_signal():
     (["radial", "--case", "A3", "--contact-gap", "1"], "--contact-gap: at 1 "),  # the shipped sample: 144 off
     (["radial", "--case", "A3", "--sigma", "1"], "--sigma: "),  # Σ = 1 m on a 1.25 mm sample
     (["radial", "--case", "A3", "--sigma", "1e-9"], "--sigma: "),
+    (["radial", "--case", "A3", "--rate", "1e-30"], "--rate 1e-30: must give a Ca* (Eq. 24) in [1e-10, 1e4]"),
 ])
 def test_radial_names_the_parameter_its_network_or_rate_cannot_take(argv, parameter, tmp_path, capsys):
     # a new-user pass: --contact-gap 1 was blamed on a --packing never given; --sigma 1 ran to
@@ -795,6 +796,24 @@ def test_one_way_names_the_p_v_flags_it_does_not_use():
         "--pv-tol", "--no-replica", "--pv-continue"]
     assert unused("--one-way", "--one-way-volume", "lagged", "--dem-cycles", "100") == []
     assert unused("--pv-continue", "--pv-tol", "1e-2") == []  # the two-way model iterates
+
+
+def test_radial_rate_gives_its_own_ca_star_and_a_run_weeks_long_warns():
+    # --rate sets Q instead of Ca* (Eq. 24 then gives Ca*, as for the linear cases); a rate that
+    # fills the pores in millions of flow steps warns (a new-user pass: A1 at Ca* 1e-3, 8e6 steps
+    # of DEM behind a bar at 0 %)
+    from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario
+    from hmdem.hele_shaw import long_fill_warning
+
+    named = build_radial_scenario(RADIAL_CASES["A3"])
+    by_rate = build_radial_scenario(RADIAL_CASES["A3"], rate=named.setup.rate)
+    assert by_rate.setup.rate == named.setup.rate
+    assert by_rate.ca_star == pytest.approx(named.ca_star, rel=1e-12)
+    assert long_fill_warning(named) is None and long_fill_warning(build_radial_scenario(RADIAL_CASES["A1"])) is None
+    slow = build_radial_scenario(RADIAL_CASES["A1"], ca_star=1e-3)  # ~80 s to fill at 1e-5 s steps
+    assert "8e+06 flow steps" in long_fill_warning(slow)
+    slow.setup.max_steps = 1000  # a run the user bounded
+    assert long_fill_warning(slow) is None
 
 
 def test_radial_title_says_which_of_the_cases_settings_were_changed():

@@ -15,7 +15,7 @@ from importlib import resources
 
 import numpy as np
 
-from ..cases import CP, MPA, rate_from_ca_star
+from ..cases import CP, MPA, ca_star_from_rate, rate_from_ca_star
 from ..flow.diagnostics import UNDETERMINED
 from ..flow.fluids import FluidPair
 from ..flow.simulation import FlowSetup
@@ -133,13 +133,14 @@ class RadialScenario:
 
 
 def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, ca_star: float | None = None,
-                          viscosity_ratio: float | None = None, one_way: bool = False,
+                          viscosity_ratio: float | None = None, one_way: bool = False, rate: float | None = None,
                           aperture_law: ApertureLaw | None = None, sigma: float | None = None,
                           grain_density: float = GRAIN_DENSITY, fixed_port: bool = False,
                           contact_gap: float | None = None, friction: float = GRAIN_FRICTION,
                           stiffness_ratio: float = 1.0, boundary_hold: str = "fixed") -> RadialScenario:
     """Network, flow set-up and coupling parameters of a radial case (no DEM yet, no YADE).
     ``sigma``: the Eq. 24 inlet perimeter Sigma [m] (default :data:`PAPER_SIGMA_OVER_LENGTH` x L).
+    ``rate``: the injection rate Q [m^3/s per m] instead of Ca*, whose Eq. 24 value it then gives.
     ``grain_density``: of the discs [kg/m^3]; it sets how fast the port's grains yield (BENCHMARKS.md).
     ``fixed_port``: hold the grains around the inflow domain as well, a rigid injection tube
     whose pipes keep their apertures (decisions.md #68); the seed fixes the boundary grains only.
@@ -158,9 +159,12 @@ def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, 
     law = aperture_law or ApertureLaw()
     length = float(pk.box[0])
     sigma = PAPER_SIGMA_OVER_LENGTH * length if sigma is None else sigma
-    ca = case.ca_star if ca_star is None else ca_star
+    if rate is None:
+        ca = case.ca_star if ca_star is None else ca_star
+        rate = rate_from_ca_star(ca, fluids, sigma, length, case.mean_aperture)  # ā = a0 (decisions #21)
+    else:
+        ca = ca_star_from_rate(rate, fluids, sigma, length, case.mean_aperture)
     case = replace(case, viscosity_inv=eta_inv, ca_star=ca)  # the run's own, as its title says
-    rate = rate_from_ca_star(ca, fluids, sigma, length, case.mean_aperture)  # ā = a0 (decisions #21)
     setup = FlowSetup(fluids, rate, case.dt)
     coupling = CouplingSetup(aperture_law=law, one_way=one_way, **dict(case.coupling_defaults))
     # "all boundary grains are fixed, imitating the sealed cell edges" (digest §11.2): the grains
