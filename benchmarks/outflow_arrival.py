@@ -21,11 +21,13 @@ PAPER_BREAKTHROUGH_S = {"A1": 3.0e-2, "A3": 1.5e-3, "B1": 2.5e-2, "B3": 3.5e-4} 
 
 def row(run: Path) -> str:
     summary = json.loads((run / "summary.json").read_text())
+    if summary["status"] != "breakthrough":  # no breakthrough to read against
+        return f"| {run} | {summary['case']} | {summary['status']} | – | – | – | – | – | – |"
     network, state = np.load(run / "network.npz"), np.load(run / "state.npz")
     wetted = np.load(run / "fractures.npz")["pore_wetted_time"]
     area = network["domain_volume"].sum()
     rate = summary["rate_m3_per_s_per_m"]
-    breakthrough = summary["breakthrough_time_s"] or summary["simulated_time_s"]
+    breakthrough = summary["breakthrough_time_s"]
     arrival = wetted[network["outlet_domains"]].min()
     filled = network["domain_volume"][state["saturation"] >= 1.0].sum() / area
     paper = PAPER_BREAKTHROUGH_S.get(summary["case"])

@@ -298,6 +298,7 @@ def run_darcy_command(args, argv) -> int:
     from .coupling.radial import default_huang_packing_path
     from .dem.compaction import CompactionBar, check_confining_stress
     from .dem.runs import permeability_sweep, stored_permeability
+    from .network.contact_graph import ContactsOffTriangulation
 
     check_confining_stress("--stresses", args.stresses, args.contact_stiffness)
     path = args.packing or Path(str(default_huang_packing_path()))
@@ -322,19 +323,22 @@ def run_darcy_command(args, argv) -> int:
                   f"KC = {res.kozeny_carman:.4g} m^2, porosity {res.porosity_2d:.4f}, "
                   f"{res.extra['seconds']:.0f} s", file=sys.stderr, flush=True)
 
-    status = "finished"
+    status, message = "finished", ""
     try:
-        with near_contacts_checked(given_gap):
-            permeability_sweep(args.stresses, args.n, args.seed, k_n=args.contact_stiffness, law=law,
-                               contact_gap=args.contact_gap, progress=say, compaction_progress=bar)
+        permeability_sweep(args.stresses, args.n, args.seed, k_n=args.contact_stiffness, law=law,
+                           contact_gap=args.contact_gap, progress=say, compaction_progress=bar)
     except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the stresses done, and the stored packing (no DEM)
         status = "interrupted"
+    except ContactsOffTriangulation as exc:  # a freshly compacted sample the gap cannot take: keep what is done
+        status = "failed"
+        message = (f"the sample compacted to {args.stresses[len(sweep)] / 1e6:g} MPa (--n {args.n}, --seed "
+                   f"{args.seed}) has no network at --contact-gap {args.contact_gap:g}: {exc}")
     finally:
         if bar is not None:
             bar.close()
-    if status == "interrupted":
-        print(f"{PROG}: interrupted after {len(sweep)} of {len(args.stresses)} stresses; writing those",
-              file=sys.stderr)
+    if status != "finished":
+        print(f"{PROG}: {'interrupted' if status == 'interrupted' else message} after {len(sweep)} of "
+              f"{len(args.stresses)} stresses; writing those", file=sys.stderr)
     rows = [r.row() for r in sweep]
     for r in rows:
         r["ratio_to_kozeny_carman"] = r["permeability"] / r["kozeny_carman"]
@@ -346,6 +350,7 @@ def run_darcy_command(args, argv) -> int:
     at_paper = [r for r in rows if abs(r["target_stress"] - PAPER_STRESS) <= 1e-9 * PAPER_STRESS]
     summary = {
         "status": status,
+        "status_message": message,
         "stresses_pa": list(args.stresses),
         "n_grains": args.n,
         "seed": args.seed,
@@ -382,7 +387,7 @@ def run_darcy_command(args, argv) -> int:
     print(f"stored packing ({stored.confining_stress / 1e6:.3f} MPa): k = {stored.permeability:.3e} m^2, "
           f"{stored_row['relative_error_vs_paper']:+.1%} vs the paper's 7.43e-13")
     print(f"run directory: {out} ({summary['wall_seconds']:.0f} s)")
-    return interrupted_status() if status == "interrupted" else 0
+    return {"interrupted": interrupted_status(), "failed": 1}.get(status, 0)
 
 
 def _fmt(v) -> str:

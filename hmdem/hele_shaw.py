@@ -417,7 +417,7 @@ def unused_with_one_way(args) -> list[str]:
     was taken without a word, and did nothing)."""
     given = [f"--{'no-' * (getattr(args, flag) is False)}{flag.replace('_', '-')}" for flag in PV_ONLY_FLAGS
              if getattr(args, flag) is not None]
-    return given + ["--pv-continue"] * args.pv_continue if args.one_way else []
+    return given + ["--pv-rewind"] * args.pv_rewind + ["--pv-continue"] * args.pv_continue if args.one_way else []
 
 
 # nominal flow steps to fill a radial sample's pores beyond which a run warns: the named cases
@@ -437,8 +437,8 @@ def long_fill_warning(sc) -> str | None:
     if min(steps, setup.max_steps, setup.t_max / setup.dt) <= MANY_NOMINAL_STEPS:
         return None
     return (f"{PROG}: warning: at Q = {setup.rate:.3g} m^2/s (Ca* {sc.ca_star:.3g}) the pores take {fill_time:.3g} s "
-            f"to fill, {steps:.2g} flow steps of {setup.dt:g} s, where the named cases take 3,000-5,000; "
-            f"--t-max or --max-steps bounds the run")
+            f"to fill, {steps:.2g} flow steps of {setup.dt:g} s, where the named cases take 3,000-5,000; the run "
+            f"stops at --max-steps {setup.max_steps:g} unless --t-max stops it sooner")
 
 
 def check_inlet_perimeter(sc) -> None:
@@ -448,7 +448,7 @@ def check_inlet_perimeter(sc) -> None:
     smallest, perimeter = 2.0 * float(sc.packing.radii.min()), 2.0 * float(sum(sc.packing.box))
     if not smallest <= sc.sigma <= perimeter:
         raise InputError(f"--sigma: the inlet perimeter must be from the smallest grain's diameter, {smallest:.3g} m, "
-                         f"to the sample's perimeter, {perimeter:.3g} m; got {sc.sigma:g}")
+                         f"to the sample's perimeter, {perimeter:.3g} m; got {sc.sigma:g} m")
 
 
 def run_radial(args) -> int:

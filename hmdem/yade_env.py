@@ -76,7 +76,8 @@ def import_yade(threads: int | None = None):
             # would break --quiet (a run prints just its result line), so it is dropped. Ctrl-C and
             # SIGTERM are held through the import: raised inside YADE's boost-python module set-up
             # they aborted the process or left a SystemError traceback (a new-user pass: 13 of 24
-            # signals sent in that second); held, they stop the command once YADE is in
+            # signals sent in that second); held, they stop the command once YADE is in (an import
+            # that hung would then need SIGKILL; none has been seen)
             with contextlib.redirect_stdout(io.StringIO()), deferred_interrupts():
                 yade = importlib.import_module("yade")
         except ImportError:

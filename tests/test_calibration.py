@@ -399,13 +399,40 @@ def test_yade_contact_forces_are_k_n_times_the_stored_overlaps():
     assert np.all(force[overlap < -1e-12] == 0.0)
 
 
-def test_darcy_contact_gap_its_sample_cannot_take_is_one_line_before_any_compaction(tmp_path, capsys):
+def test_darcy_contact_gap_its_sample_cannot_take_is_one_line_before_any_compaction(tmp_path, monkeypatch, capsys):
     # a new-user pass: --contact-gap 1 gave a traceback after the sweep's compactions; the stored
     # sample's network (144 contacts off its triangulation at that gap) is now built first
+    import hmdem.dem.runs as runs
+
+    def compaction(*args, **kwargs):
+        raise AssertionError("the sweep started")
+
+    monkeypatch.setattr(runs, "permeability_sweep", compaction)
     out = tmp_path / "darcy"
     assert main(["darcy", "--contact-gap", "1", "--out", str(out), "--quiet"]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and "--contact-gap: at 1 " in lines[0] and not out.exists()
+
+
+def test_darcy_sample_whose_network_fails_keeps_the_stresses_done(tmp_path, monkeypatch, capsys):
+    # a compacted sample of the sweep whose near contacts leave its triangulation (review): the
+    # stresses done are written with status "failed" and the reason, exit 1, not a traceback
+    import hmdem.dem.runs as runs
+    from hmdem.network.contact_graph import ContactsOffTriangulation
+
+    def one_then_off(stresses, *args, progress, **kwargs):
+        res = runs.stored_permeability(DiscPacking.load(default_huang_packing_path()))
+        res.extra = {"target_stress": float(stresses[0]), "seconds": 0.0}
+        progress(0, stresses[0], res)
+        raise ContactsOffTriangulation("3 of its contacts (e.g. grains 1 and 2) are not edges")
+
+    monkeypatch.setattr(runs, "permeability_sweep", one_then_off)
+    out = tmp_path / "da"
+    assert main(["darcy", "--stresses", "1e5,1.4e5", "--out", str(out), "--quiet"]) == 1
+    assert "compacted to 0.14 MPa (--n 1395, --seed 0) has no network" in capsys.readouterr().err
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "failed" and "3 of its contacts" in s["status_message"]
+    assert [r["target_stress"] for r in s["results"]] == [1e5]
 
 
 @pytest.mark.yade

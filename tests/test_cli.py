@@ -795,6 +795,7 @@ def test_one_way_names_the_p_v_flags_it_does_not_use():
     assert unused("--one-way", "--pv-continue", "--pv-tol", "1e-2", "--no-replica", "--damping", "0.5") == [
         "--pv-tol", "--no-replica", "--pv-continue"]
     assert unused("--one-way", "--one-way-volume", "lagged", "--dem-cycles", "100") == []
+    assert unused("--one-way", "--pv-rewind") == ["--pv-rewind"]
     assert unused("--pv-continue", "--pv-tol", "1e-2") == []  # the two-way model iterates
 
 
@@ -807,8 +808,8 @@ def test_radial_rate_gives_its_own_ca_star_and_a_run_weeks_long_warns():
 
     named = build_radial_scenario(RADIAL_CASES["A3"])
     by_rate = build_radial_scenario(RADIAL_CASES["A3"], rate=named.setup.rate)
-    assert by_rate.setup.rate == named.setup.rate
     assert by_rate.ca_star == pytest.approx(named.ca_star, rel=1e-12)
+    assert by_rate.case.title == named.case.title  # the case's own rate changes nothing
     assert long_fill_warning(named) is None and long_fill_warning(build_radial_scenario(RADIAL_CASES["A1"])) is None
     slow = build_radial_scenario(RADIAL_CASES["A1"], ca_star=1e-3)  # ~80 s to fill at 1e-5 s steps
     assert "8e+06 flow steps" in long_fill_warning(slow)

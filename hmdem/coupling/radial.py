@@ -59,8 +59,9 @@ class RadialCase:
         named = RADIAL_CASES.get(self.name)
         if named is None:
             return title
-        changed = [what for what, differs in (("M", self.viscosity_inv != named.viscosity_inv),
-                                               ("Ca*", self.ca_star != named.ca_star)) if differs]
+        changed = [what for what, ours, paper in (("M", self.viscosity_inv, named.viscosity_inv),
+                                                  ("Ca*", self.ca_star, named.ca_star))
+                   if not math.isclose(ours, paper, rel_tol=1e-9)]  # a rate given as the case's own is not a change
         return f"{title}, with {' and '.join(changed)} changed" if changed else title
 
 
@@ -132,7 +133,7 @@ class RadialScenario:
         return self.packing.radii
 
 
-def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, ca_star: float | None = None,
+def build_radial_scenario(case: RadialCase, packing: DiscPacking | None = None, *, ca_star: float | None = None,
                           viscosity_ratio: float | None = None, one_way: bool = False, rate: float | None = None,
                           aperture_law: ApertureLaw | None = None, sigma: float | None = None,
                           grain_density: float = GRAIN_DENSITY, fixed_port: bool = False,
