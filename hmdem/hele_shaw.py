@@ -487,10 +487,8 @@ def run_radial(args) -> int:
     if args.max_steps is not None:
         sc.setup.max_steps = args.max_steps
     unused = unused_with_one_way(args)
-    if unused:
-        print(f"{PROG}: warning: {', '.join(unused)} not used: --one-way runs no P-V iteration", file=sys.stderr)
-    warning = busy_cores_warning(args.threads)
-    for warning in filter(None, (long_fill_warning(sc), warning)):
+    unused_note = f"{PROG}: warning: {', '.join(unused)} not used: --one-way runs no P-V iteration" if unused else None
+    for warning in filter(None, (unused_note, long_fill_warning(sc), busy_cores_warning(args.threads))):
         print(warning, file=sys.stderr)
     grains = start_grains(sc, threads=args.threads)
     model = CoupledFlowModel(sc.net, sc.setup, grains, sc.coupling)
