@@ -515,7 +515,9 @@ def test_yade_script_interrupted_exits_128_plus_signal_with_one_line_and_a_valid
     assert proc.returncode == status, err[-2000:]
     assert "Traceback" not in err
     (run,) = (tmp_path / "runs" / "lenormand-batch").iterdir()
-    assert f"run {run.name} ended with exit status {status}; run directory" in err
+    # the run's status_message names the signal (2026-12-01)
+    reason = "Ctrl-C (SIGINT)" if signum == signal.SIGINT else "SIGTERM"
+    assert f"run {run.name} ended with exit status {status}: stopped by {reason}; run directory" in err
     assert json.loads((run / "summary.json").read_text())["status"] == "interrupted"
 
 
