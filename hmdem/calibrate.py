@@ -26,7 +26,7 @@ from pathlib import Path
 
 from . import __version__
 from .cli import (OneLineParser, add_contact_arguments, contact_gap_fraction, dispatch, grain_count, interrupted_status,
-                  near_contacts_checked, new_run_directory, non_negative_int, number_in, positive_number,
+                  near_contacts_checked, new_run_directory, number_in, positive_number, seed_value,
                   read_compacted_packing, stop_note)
 from .dem.biaxial import FIT_STRAIN
 from .network.contact_graph import NEAR_CONTACT_GAP
@@ -72,7 +72,7 @@ def build_parser() -> argparse.ArgumentParser:
     bi.add_argument("--strain-rate", type=positive_number, default=STRAIN_RATE,
                     help=f"axial strain rate [1/s] (default {STRAIN_RATE:g})")
     bi.add_argument("--max-strain", type=final_strain, default=0.025, help="final axial strain (default 0.025)")
-    bi.add_argument("--seed", type=non_negative_int, default=0, help="packing seed (default 0)")
+    bi.add_argument("--seed", type=seed_value, default=0, help="packing seed (default 0)")
     add_contact_arguments(bi)
     bi.add_argument("--rate-check", action="store_true",
                     help="repeat the loading at half the strain rate on the same sample and report the change")
@@ -85,7 +85,7 @@ def build_parser() -> argparse.ArgumentParser:
     da.add_argument("--packing", type=Path, help="stored packing .npz to evaluate as well (default: the shipped "
                                                  "Huang sample)")
     da.add_argument("--n", type=grain_count, default=1395, help="discs of the compacted samples (default 1395)")
-    da.add_argument("--seed", type=non_negative_int, default=0, help="packing seed (default 0)")
+    da.add_argument("--seed", type=seed_value, default=0, help="packing seed (default 0)")
     add_contact_arguments(da, friction=False)  # the sweep's compactions; a stored packing keeps its own k_n
     da.add_argument("--contact-gap", type=contact_gap_fraction, default=NEAR_CONTACT_GAP,
                     help="grain pairs closer than this fraction of the smaller radius are pipes (default %(default)g, "

@@ -93,6 +93,9 @@ def int_at_least(minimum: int, allowed: str | None = None, maximum: int | None =
 
 
 non_negative_int = int_at_least(0, "a non-negative integer")
+# a seed is stored as a 64-bit integer (the packing .npz, TOML's config.toml): a larger one was
+# written as a Python object the file's readers refuse (a new-user pass)
+seed_value = int_at_least(0, "an integer in [0, 2**63 - 1]", 2**63 - 1)
 positive_int = int_at_least(1)
 MIN_GRAINS = 50  # fewer discs do not make a packing with a load-bearing interior
 # more discs than YADE places and relaxes in reasonable time here (benchmarks/scaling.py goes to
@@ -432,6 +435,15 @@ def check_packing_grains(path: Path, packing) -> None:
         raise InputError(f"{name}: its discs must lie within its box (0-{width:g} m x 0-{height:g} m, "
                          f"give or take a grain diameter); they span x {centres[:, 0].min():g}-{centres[:, 0].max():g} m, "
                          f"y {centres[:, 1].min():g}-{centres[:, 1].max():g} m")
+    contacts = np.asarray(packing.contacts)
+    if not contacts.size:
+        return
+    if contacts.ndim != 2 or contacts.shape[1] != 2 or contacts.dtype.kind not in "iu":
+        raise InputError(f"{name}: its contacts must be (k, 2) integer disc indices, got {contacts.dtype} "
+                         f"{contacts.shape}")
+    if contacts.min() < 0 or contacts.max() >= len(radii):  # a new-user pass: reported as off the triangulation
+        raise InputError(f"{name}: its contacts must be pairs of disc indices from 0 to {len(radii) - 1}; they run "
+                         f"from {contacts.min()} to {contacts.max()}")
 
 
 def read_compacted_packing(path: Path):

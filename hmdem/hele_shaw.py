@@ -19,7 +19,7 @@ from .cases import CASES, default_packing_path
 from .cli import (InputError, OneLineParser, add_contact_arguments, check_aperture_fits_grains, contact_gap_fraction,
                   dispatch, interrupt_reason, interrupted_status, local_damping, near_contacts_checked,
                   new_run_directory, non_negative_int, number_in, positive_int, positive_number,
-                  read_compacted_packing, read_packing, relative_tolerance)
+                  read_compacted_packing, read_packing, relative_tolerance, seed_value)
 from .flow.darcy_transient import STEADY_T_D, read_darcy_test
 from .flow.fluids import WEAK_COMPRESSION
 from .interrupts import deferred_interrupts
@@ -75,7 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="M = eta_inv / eta_def in [1e-6, 1e6]; eta_def is kept, eta_inv = M eta_def")
     lin.add_argument("--mean-aperture", type=mean_aperture,
                      help=f"mean pipe aperture [m], at least {SMALLEST_MEAN_APERTURE:g} (default 0.42e-3)")
-    lin.add_argument("--seed", type=non_negative_int, default=0, help="aperture field seed (default 0)")
+    lin.add_argument("--seed", type=seed_value, default=0, help="aperture field seed (default 0)")
     lin.add_argument("--dt", type=positive_number,
                      help="nominal flow step [s] (default per case, scaled with the rate when --ca-star, "
                           "--viscosity-ratio, --rate or --mean-aperture change it; darcy's is its own)")
@@ -188,6 +188,15 @@ def given_flags(args, names) -> list[str]:
     return [f"--{name.replace('_', '-')} {getattr(args, name):g}" for name in names if getattr(args, name) is not None]
 
 
+def check_step_within_fill(dt: float | None, pore_volume: float, rate: float) -> None:
+    """An :class:`InputError` when --dt is longer than the injection takes to fill every pore
+    (``pore_volume`` / Q): no step of a displacement is (Eq. 18 fills one domain a step), and
+    --dt 1e200 made the pressure matrix singular (a new-user pass)."""
+    if dt is not None and dt > pore_volume / rate:
+        raise InputError(f"--dt: must be at most the {pore_volume / rate:.3g} s the injection takes to fill the "
+                         f"pores; got {dt:g}")
+
+
 def check_fill_time(args, pore_volume: float, rate: float) -> None:
     """An :class:`InputError` naming the rate flags when the injection rate Q they give would fill
     the pores (``pore_volume`` / Q) in more than ``LONGEST_FILL_TIME``: ``--viscosity-ratio
@@ -234,6 +243,9 @@ def make_case(args):
                              "leave it out")
         changes["fluids"] = replace(case.fluids, viscosity_inv=args.viscosity_ratio * case.fluids.viscosity_def)
     if args.ca_star is not None:
+        if not case.two_phase:  # Eq. 24's Ca* is a displacement's: darcy at --ca-star 1e-3 ran at 1.2 Pa
+            raise InputError(f"--ca-star: the {case.name} case is single-phase, with no capillary number; "
+                             "set its rate with --rate")
         changes.update(ca_star=args.ca_star, rate=None)
     if args.rate is not None:
         changes["rate"] = args.rate
@@ -311,13 +323,15 @@ def run_linear(args) -> int:
     check_aperture_fits_grains(case.mean_aperture, sc.packing_radii, args.mean_aperture is not None)
     check_ca_star_bounds(args, case, sc.ca_star)
     check_fill_time(args, float(sc.net.domain_volume.sum()), sc.setup.rate)
+    if case.two_phase:
+        check_step_within_fill(args.dt, float(sc.net.domain_volume.sum()), sc.setup.rate)
     if args.max_steps is not None:
         sc.setup.max_steps = args.max_steps
     elif args.scheme == "explicit" and args.t_max is None:
         # the explicit step is ~1e-8 s: a run to breakthrough would take ~1e9 steps
         sc.setup.max_steps = EXPLICIT_DEFAULT_MAX_STEPS
-        print(f"explicit scheme: stopping after {EXPLICIT_DEFAULT_MAX_STEPS} steps (set --max-steps or --t-max)",
-              file=sys.stderr)
+        print(f"{PROG}: warning: the explicit scheme stops after {EXPLICIT_DEFAULT_MAX_STEPS} steps "
+              "(set --max-steps or --t-max)", file=sys.stderr)
     model = FlowModel(sc.net, sc.setup)
     state, rec, bar, snapshots = run_watched(model, case.name, sc.setup, args)
     with deferred_interrupts():  # the run is over: a signal now stops the command once it is written
@@ -476,6 +490,7 @@ def run_radial(args) -> int:
                                    friction=args.friction, stiffness_ratio=args.stiffness_ratio,
                                    boundary_hold=args.boundary)
     check_inlet_perimeter(sc)
+    check_step_within_fill(args.dt, float(sc.net.domain_volume.sum()), sc.setup.rate)
     if args.rate is not None:
         require_ca_star_in_range(given_flags(args, ("rate", "viscosity_ratio", "sigma")), sc.ca_star)
     for flag, field, convert in COUPLING_FLAGS:

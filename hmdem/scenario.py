@@ -32,6 +32,17 @@ def load_packing(path=None) -> DiscPacking:
     return DiscPacking.load(path or default_packing_path())
 
 
+def linear_network(pk: DiscPacking, contact_gap: float) -> Network:
+    """Contact network of a Lenormand-type packing, pairs closer than ``contact_gap`` x the smaller
+    radius counting as contacts, with the inflow domains along its left side and the outflow
+    domains along its right (NoBoundaryDomains when it has none)."""
+    near = find_contacts(pk.centres, pk.radii, tolerance=contact_gap)
+    contacts = np.unique(np.concatenate([pk.contacts.reshape(-1, 2), near]), axis=0)
+    net = build_contact_network(pk.centres, pk.radii, contacts)
+    net.inlet_domains, net.outlet_domains = linear_flow_boundaries(net, band=2.5 * pk.radii.mean())
+    return net
+
+
 def build_network(case: Case, seed: int, packing_path=None) -> tuple[Network, float, float, np.ndarray]:
     """Network with apertures and boundary domains; returns (net, Sigma, L) for Ca* and the grain radii."""
     rng = np.random.default_rng(seed)
@@ -43,10 +54,7 @@ def build_network(case: Case, seed: int, packing_path=None) -> tuple[Network, fl
         radii = np.full(len(net.points), CHEN_SPACING / 2)
     else:
         pk = load_packing(packing_path)
-        near = find_contacts(pk.centres, pk.radii, tolerance=case.contact_gap)
-        contacts = np.unique(np.concatenate([pk.contacts, near]), axis=0)
-        net = build_contact_network(pk.centres, pk.radii, contacts)
-        net.inlet_domains, net.outlet_domains = linear_flow_boundaries(net, band=2.5 * pk.radii.mean())
+        net = linear_network(pk, case.contact_gap)
         sigma, length = pk.box[1], pk.box[0]
         radii = pk.radii
     net.check_euler()

@@ -34,7 +34,7 @@ import numpy as np
 
 from hmdem import __version__
 from hmdem.cli import (InputError, OneLineParser, dispatch, int_at_least, new_run_directory, non_negative_number,
-                       number_in, open_bar, positive_number, stop_note)
+                       number_in, open_bar, positive_number, seed_value, stop_note)
 from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_toml
 from hmdem.snapshots import write_collection
 
@@ -123,7 +123,7 @@ def build_parser() -> OneLineParser:
     p.add_argument("--anneal", type=non_negative_number,
                    help=ANNEAL_HELP + " (default: the calibration's own, 0.3 for the shipped ones; 0 with "
                         "--s-ff/--s-sf)")
-    p.add_argument("--seed", type=int_at_least(0), default=0, help="seed of the annealing's kicks (default 0)")
+    p.add_argument("--seed", type=seed_value, default=0, help="seed of the annealing's kicks (default 0)")
     p.add_argument("--checkpoint", type=Path, metavar="DIR",
                    help="save the relaxation in DIR after every shape sample; the same command run again "
                         "with a new --out goes on from there (a long run killed or cut by its batch slot), to "

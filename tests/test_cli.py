@@ -93,6 +93,13 @@ def test_a_prefix_of_an_option_is_refused(tmp_path, module, args, prefix):
     (["linear", "--ca-star", "1e5"], "--ca-star"),
     (["radial", "--viscosity-ratio", "1e-7"], "--viscosity-ratio"),
     (["radial", "--ca-star", "1e-11"], "--ca-star"),
+    # a new-user pass: --dt 1e200 made the pressure matrix singular (a step never exceeds the
+    # time the pores take to fill: vf 44 s, B3 2.5 ms); darcy ran at --ca-star's rate; a seed past
+    # 64 bits was written as a Python object into the packing file and into config.toml
+    (["linear", "--dt", "1e200"], "--dt"),
+    (["radial", "--case", "B3", "--dt", "1"], "--dt"),
+    (["linear", "--case", "darcy", "--ca-star", "1e-3"], "--ca-star"),
+    (["linear", "--seed", str(2**63)], "--seed"),
 ])
 def test_bad_input_one_line_exit_2_nothing_written(tmp_path, args, name):
     out = tmp_path / "run"
@@ -101,6 +108,32 @@ def test_bad_input_one_line_exit_2_nothing_written(tmp_path, args, name):
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and name in lines[0]
     assert list(tmp_path.iterdir()) == []
+
+
+def test_packing_contacts_out_of_its_discs_are_named_as_such(tmp_path, capsys):
+    # a new-user pass: contacts past the disc count were reported as "not edges of the Delaunay
+    # triangulation: a grain sits in the throat"
+    from hmdem.network.packing import DiscPacking
+
+    pk = DiscPacking.load(DATA / "lenormand_packing.npz")
+    DiscPacking(pk.centres, pk.radii, pk.contacts + len(pk.radii), pk.box, 0).save(tmp_path / "bad.npz")
+    assert main(["linear", "--packing", str(tmp_path / "bad.npz"), "--out", str(tmp_path / "run")]) == 2
+    assert f"its contacts must be pairs of disc indices from 0 to {len(pk.radii) - 1}" in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_packing_whose_discs_do_not_touch_is_not_written(tmp_path):
+    # a new-user pass: packing --porosity 0.5 wrote 1,188 discs with one contact, exit 0; every
+    # run then refused the file. The same grains spread over a box three times as wide: no network
+    from hmdem.cli import InputError
+    from hmdem.dem.packing import check_network
+    from hmdem.network.packing import DiscPacking
+
+    pk = DiscPacking.load(DATA / "lenormand_packing.npz")
+    check_network(pk, 0.117)  # the shipped packing has its network
+    loose = DiscPacking(3.0 * pk.centres, pk.radii, pk.contacts[:0], (3.0 * pk.box[0], 3.0 * pk.box[1]), 0)
+    with pytest.raises(InputError, match=r"^--porosity: at 0\.9 the 1188 discs make 0 contact"):
+        check_network(loose, 0.9)
 
 
 def test_out_through_a_file_is_refused_before_the_run(tmp_path, capsys):

@@ -155,6 +155,18 @@ def test_a_sweep_directory_cannot_be_resumed_with_another_grid(tmp_path):
         Manifest.open(tmp_path, {"log_m": "0:1:2"}, points)
 
 
+def test_a_packing_with_no_network_is_refused_before_the_sweep_directory(tmp_path, capsys):
+    # a new-user pass: a packing whose discs do not touch made a sweep directory of 12 failed points
+    pk = tiny_packing()
+    loose = DiscPacking(3.0 * pk.centres, pk.radii, pk.contacts[:0], (3.0 * pk.box[0], 3.0 * pk.box[1]), 0)
+    loose.save(tmp_path / "loose.npz")
+    out = tmp_path / "sweep"
+    assert sweep_main(["lenormand", *GRID, "--packing", str(tmp_path / "loose.npz"), "--out", str(out)]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "--packing: its network has 0 inflow and 0 outflow domains" in lines[0]
+    assert not out.exists()
+
+
 def test_a_sweep_is_resumed_on_its_packing_bytes_not_its_packing_name(tmp_path, capsys, monkeypatch):
     # a new-user pass: a packing file replaced under the same name was resumed into the same
     # sweep (runs on two samples in one table), while the shipped file named explicitly was
@@ -495,6 +507,19 @@ def test_yade_script_keeps_to_the_sweeps_bounds(tmp_path, column, value, allowed
                           env=env, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert f"hele_shaw_linear.py: table: {column} must be a number in {allowed}, got {value}" in proc.stderr
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.yade
+@pytest.mark.parametrize("value", ["-1", "2.5", "1e30"])
+def test_yade_script_seed_is_a_64_bit_integer(tmp_path, value):
+    # a new-user pass: seed -1 was reported as the CLI's --seed, not the table's column
+    (tmp_path / "bad.table").write_text(f"description seed out\nbad {value} '{tmp_path / 'run'}'\n")
+    env = {**os.environ, "YADE_BATCH": f"{tmp_path / 'bad.table'}:2"}
+    proc = subprocess.run(["yade", "-n", "-x", str(ROOT / "yade_scripts" / "hele_shaw_linear.py")], cwd=tmp_path,
+                          env=env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert "hele_shaw_linear.py: table: seed must be an integer in [0, 2**63 - 1]" in proc.stderr
     assert not (tmp_path / "run").exists()
 
 

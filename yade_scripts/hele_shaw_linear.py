@@ -42,7 +42,12 @@ for column, (low, high) in (("logM", LOG_M_RANGE), ("logCa", LOG_CA_STAR_RANGE))
         print(f"yade_scripts/hele_shaw_linear.py: table: {column} must be a number in [{low:g}, {high:g}], got "
               f"{value!r}", file=sys.stderr)
         sys.exit(2)
-point = SweepPoint(float(table.logM), float(table.logCa), int(table.seed))
+seed = table.seed  # an aperture field's seed, stored as a 64-bit integer (the CLI's --seed)
+if isinstance(seed, (str, bool)) or not float(seed).is_integer() or not 0 <= seed <= 2**63 - 1:
+    print(f"yade_scripts/hele_shaw_linear.py: table: seed must be an integer in [0, 2**63 - 1], got {seed!r}",
+          file=sys.stderr)
+    sys.exit(2)
+point = SweepPoint(float(table.logM), float(table.logCa), int(seed))
 out = Path(table.out or f"runs/lenormand-batch/{point.run_id}")
 try:  # a finished run there is taken as the point's result (run_point checks it is this point's)
     earlier = read_summary(out)

@@ -204,7 +204,7 @@ def main(argv=None) -> int:
     from pathlib import Path
 
     from ..cli import (OneLineParser, add_contact_arguments, check_packing_out, dispatch, grain_count,
-                       non_negative_int, positive_number)
+                       positive_number, seed_value)
 
     prog = "python -m hmdem.dem.compaction"
 
@@ -219,7 +219,7 @@ def main(argv=None) -> int:
                              "density; the final box follows from the stress)")
     parser.add_argument("--stress", type=positive_number, default=0.14e6,
                         help="confining stress [Pa] (default %(default)g, the Huang sample's)")
-    parser.add_argument("--seed", type=non_negative_int, default=0, help="seed of the radii and the seeding "
+    parser.add_argument("--seed", type=seed_value, default=0, help="seed of the radii and the seeding "
                                                                           "(default %(default)d)")
     add_contact_arguments(parser, friction=False)  # compaction is frictionless; the runs set mu
     parser.add_argument("--overwrite", action="store_true",

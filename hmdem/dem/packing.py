@@ -100,7 +100,7 @@ def main(argv=None) -> int:
     from pathlib import Path
 
     from ..cli import (MAX_GRAINS, MIN_GRAINS, OneLineParser, check_packing_out, dispatch, grain_count,
-                       non_negative_int, number_in, positive_number)
+                       number_in, positive_number, seed_value)
 
     prog = "python -m hmdem.dem.packing"
 
@@ -121,7 +121,7 @@ def main(argv=None) -> int:
                         type=number_in(f"a number in ({HEXAGONAL_POROSITY:.4f}, 1): no disc packing is denser than "
                                        "the hexagonal one", lambda v: HEXAGONAL_POROSITY < v < 1),
                         help="porosity of the box (default %(default)g)")
-    parser.add_argument("--seed", type=non_negative_int, default=0, help="seed of the radii and the seeding "
+    parser.add_argument("--seed", type=seed_value, default=0, help="seed of the radii and the seeding "
                                                                           "(default %(default)d)")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace --out if it exists (make packing regenerates the shipped file)")
@@ -137,6 +137,22 @@ def main(argv=None) -> int:
     return dispatch(prog, parser, args, {"packing": write_packing})
 
 
+def check_network(pk: DiscPacking, porosity: float) -> None:
+    """An :class:`~hmdem.cli.InputError` naming --porosity when a run could build no network on the
+    packing: past about 0.2 the discs no longer touch (a new-user pass: 0.5 wrote a file of one
+    contact, which every run then refused)."""
+    from ..cli import InputError
+    from ..network.boundaries import NoBoundaryDomains
+    from ..network.contact_graph import NEAR_CONTACT_GAP
+    from ..scenario import linear_network
+
+    try:
+        linear_network(pk, NEAR_CONTACT_GAP)
+    except NoBoundaryDomains as exc:
+        raise InputError(f"--porosity: at {porosity:g} the {len(pk.radii)} discs make {len(pk.contacts)} contact(s) "
+                         f"and no run can use them: {exc}; a dense packing has a porosity below about 0.2") from None
+
+
 def write_packing(args) -> int:
     """The command's work: generate, then write ``--out`` in one go."""
     from ..rundir import replaced_atomically
@@ -144,6 +160,7 @@ def write_packing(args) -> int:
     t0 = time.perf_counter()
     mean_radius = 1.0e-3 if args.mean_radius is None else args.mean_radius  # sets the walls' stiffness only
     pk = generate_packing(args.n or 1188, (args.size, args.size), mean_radius, args.spread, args.porosity, args.seed)
+    check_network(pk, args.porosity)
     args.out.absolute().parent.mkdir(parents=True, exist_ok=True)
     # a kill while writing leaves no part of a file; a file made at --out meanwhile is kept
     with replaced_atomically(args.out, keep_existing=not args.overwrite) as tmp:

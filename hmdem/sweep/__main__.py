@@ -20,7 +20,7 @@ from pathlib import Path
 from .. import __version__
 from ..cases import CASES, default_packing_path
 from ..cli import (InputError, OneLineParser, check_aperture_fits_grains, check_out_parent, dangling_link, dispatch,
-                   interrupted_status, positive_int, read_packing)
+                   interrupted_status, near_contacts_checked, positive_int, read_packing)
 from .grid import LOG_CA_STAR_RANGE, LOG_M_RANGE
 
 PROG = "python -m hmdem.sweep"
@@ -113,14 +113,17 @@ def run_lenormand(args) -> int:
     from .grid import lenormand_points, lenormand_spec
     from .manifest import DONE, FAILED, Manifest
     from .runner import BASE_CASE
+    from ..scenario import linear_network
 
     runs = args.log_m.count * args.log_ca.count * args.seeds
     if runs > MAX_RUNS:
         raise InputError(f"--log-m, --log-ca, --seeds: must give at most {MAX_RUNS:,} runs (the manifest lists "
                          f"each), got {runs:,}")
     if args.packing is not None:  # a missing, unreadable or misfit file is one line, not a failure per point
-        check_aperture_fits_grains(CASES[BASE_CASE].mean_aperture, read_packing(args.packing).radii, False,
-                                   can_set=False)
+        packing = read_packing(args.packing)
+        check_aperture_fits_grains(CASES[BASE_CASE].mean_aperture, packing.radii, False, can_set=False)
+        with near_contacts_checked():  # and one no network can be built on (a new-user pass: 12 failed points)
+            linear_network(packing, CASES[BASE_CASE].contact_gap)
     if args.scheduler is not None:
         check_scheduler_address(args.scheduler)
     out = args.out or Path("runs") / f"lenormand-{time.strftime('%Y%m%d-%H%M%S')}"

@@ -113,12 +113,12 @@ def run_point(point: SweepPoint, out: Path, packing: str | None = None, recorded
     ``out``), for a worker's scratch copy. An existing ``out`` must be a run of this point
     (:func:`check_out_is_this_point`): a finished one is its result, one left by an interrupted
     or diverged run is replaced. Raises on any failure; the sweep records the error text."""
-    from ..cli import InputError
+    from ..cli import read_packing
     from ..hele_shaw import build_parser, run_linear
 
     out = Path(out)
-    if packing is not None and not Path(packing).is_file():  # before it is hashed or read
-        raise InputError(f"--packing: no such file {str(packing)!r}")
+    if packing is not None:  # a missing or unreadable file is named before an out is checked against it
+        read_packing(packing)
     if out.exists():
         check_out_is_this_point(out, point, packing)
         finished = read_summary(out)

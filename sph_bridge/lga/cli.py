@@ -29,7 +29,7 @@ import numpy as np
 
 from hmdem import __version__
 from hmdem.cli import (InputError, OneLineParser, available_cores, dispatch, int_at_least, new_run_directory,
-                       number_in, stop_note, worker_count)
+                       number_in, seed_value, stop_note, worker_count)
 from hmdem.rundir import atomic_run_directory, write_json, write_rows, write_toml
 
 from ..interrupts import exit_status
@@ -98,7 +98,7 @@ def build_parser() -> OneLineParser:
         p.add_argument("--steps", type=int_at_least(100), help=f"averaging steps per drive (default: {times} "
                                                                  "relaxation times of the slowest viscous mode, "
                                                                  f"extended up to {most} until Q is known to 1 %%)")
-        p.add_argument("--seed", type=int_at_least(0, "a non-negative integer"), default=0,
+        p.add_argument("--seed", type=seed_value, default=0,
                        help="random seed of the lattice and (rough) the first surface (default 0)")
         if name in ("poiseuille", "rough"):
             p.add_argument("--g", type=fraction, help="forcing fraction per step (one drive; default: "
