@@ -26,8 +26,8 @@ from pathlib import Path
 
 from . import __version__
 from .cli import (OneLineParser, add_contact_arguments, contact_gap_fraction, dispatch, grain_count, interrupted_status,
-                  near_contacts_checked, new_run_directory, number_in, positive_number, seed_value,
-                  read_compacted_packing, stop_note)
+                  near_contacts_checked, new_run_directory, number_in, positive_number, read_compacted_packing,
+                  seed_value, stop_note)
 from .dem.biaxial import FIT_STRAIN
 from .network.contact_graph import NEAR_CONTACT_GAP
 from .rundir import atomic_run_directory

@@ -143,7 +143,7 @@ def check_network(pk: DiscPacking, porosity: float) -> None:
     contact, which every run then refused)."""
     from ..cli import InputError
     from ..network.boundaries import NoBoundaryDomains
-    from ..network.contact_graph import NEAR_CONTACT_GAP
+    from ..network.contact_graph import NEAR_CONTACT_GAP, ContactsOffTriangulation
     from ..scenario import linear_network
 
     try:
@@ -151,6 +151,9 @@ def check_network(pk: DiscPacking, porosity: float) -> None:
     except NoBoundaryDomains as exc:
         raise InputError(f"--porosity: at {porosity:g} the {len(pk.radii)} discs make {len(pk.contacts)} contact(s) "
                          f"and no run can use them: {exc}; a dense packing has a porosity below about 0.2") from None
+    except ContactsOffTriangulation as exc:  # a run would refuse the file
+        raise InputError(f"--seed: the packing drawn has near contacts no run can use ({exc}); try another "
+                         "seed") from None
 
 
 def write_packing(args) -> int:
