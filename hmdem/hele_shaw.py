@@ -8,6 +8,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 import time
@@ -188,23 +189,20 @@ def given_flags(args, names) -> list[str]:
     return [f"--{name.replace('_', '-')} {getattr(args, name):g}" for name in names if getattr(args, name) is not None]
 
 
-def check_step_within_fill(dt: float | None, pore_volume: float, rate: float) -> None:
-    """An :class:`InputError` when --dt is longer than the injection takes to fill every pore
-    (``pore_volume`` / Q): no step of a displacement is (Eq. 18 fills one domain a step), and
-    --dt 1e200 made the pressure matrix singular (a new-user pass)."""
-    if dt is not None and dt > pore_volume / rate:
-        raise InputError(f"--dt: must be at most the {pore_volume / rate:.3g} s the injection takes to fill the "
-                         f"pores; got {dt:g}")
-
-
-def check_fill_time(args, pore_volume: float, rate: float) -> None:
+def check_fill_time(args, pore_volume: float, rate: float, displacement: bool = True) -> None:
     """An :class:`InputError` naming the rate flags when the injection rate Q they give would fill
     the pores (``pore_volume`` / Q) in more than ``LONGEST_FILL_TIME``: ``--viscosity-ratio
-    1e300`` scaled the flow step to 3e303 s, and the run's plot overflowed at t = 1.2e308 s."""
+    1e300`` scaled the flow step to 3e303 s, and the run's plot overflowed at t = 1.2e308 s.
+    In a ``displacement``, --dt is at most that fill time: no step is longer (Eq. 18 fills one
+    domain a step), and --dt 1e200 made the pressure matrix singular (a new-user pass)."""
+    fill_time = pore_volume / rate if rate else math.inf
     flags = given_flags(args, ("rate", "ca_star", "viscosity_ratio"))
-    if flags and rate and not pore_volume / rate < LONGEST_FILL_TIME:
+    if flags and rate and not fill_time < LONGEST_FILL_TIME:
         raise InputError(f"{', '.join(flags)}: must give an injection rate that fills the pores within "
-                         f"{LONGEST_FILL_TIME:g} s; this one, Q = {rate:.3g} m^2/s, takes {pore_volume / rate:.3g} s")
+                         f"{LONGEST_FILL_TIME:g} s; this one, Q = {rate:.3g} m^2/s, takes {fill_time:.3g} s")
+    if displacement and args.dt is not None and args.dt > fill_time:
+        raise InputError(f"--dt: must be at most the {fill_time:.3g} s the injection takes to fill the pores; "
+                         f"got {args.dt:g}")
 
 
 def check_ca_star_bounds(args, case, ca_star: float) -> None:
@@ -322,9 +320,7 @@ def run_linear(args) -> int:
         sc = build_scenario(case, seed=args.seed, inlet=args.inlet, scheme=args.scheme, packing_path=args.packing)
     check_aperture_fits_grains(case.mean_aperture, sc.packing_radii, args.mean_aperture is not None)
     check_ca_star_bounds(args, case, sc.ca_star)
-    check_fill_time(args, float(sc.net.domain_volume.sum()), sc.setup.rate)
-    if case.two_phase:
-        check_step_within_fill(args.dt, float(sc.net.domain_volume.sum()), sc.setup.rate)
+    check_fill_time(args, float(sc.net.domain_volume.sum()), sc.setup.rate, displacement=case.two_phase)
     if args.max_steps is not None:
         sc.setup.max_steps = args.max_steps
     elif args.scheme == "explicit" and args.t_max is None:
@@ -490,7 +486,7 @@ def run_radial(args) -> int:
                                    friction=args.friction, stiffness_ratio=args.stiffness_ratio,
                                    boundary_hold=args.boundary)
     check_inlet_perimeter(sc)
-    check_step_within_fill(args.dt, float(sc.net.domain_volume.sum()), sc.setup.rate)
+    check_fill_time(args, float(sc.net.domain_volume.sum()), sc.setup.rate)
     if args.rate is not None:
         require_ca_star_in_range(given_flags(args, ("rate", "viscosity_ratio", "sigma")), sc.ca_star)
     for flag, field, convert in COUPLING_FLAGS:
