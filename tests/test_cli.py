@@ -623,6 +623,7 @@ def test_radial_run_directory_contract(tmp_path):
     # Huang's regimes are read at breakthrough; 12 steps is a partial pattern (decisions #76)
     assert summary["status"] == "max_steps" and summary["regime"] == "undetermined"
     assert "fractal_dimension_box_counting" in summary  # App. E's figure beside the sandbox one
+    assert 0.0 < summary["fracture_fractal_dimension"] < 2.0  # H5's fracture zone: a few cracks by now
     assert summary["steps"] == 12 and summary["max_mass_balance_error"] < 1e-10
     fractures = np.load(out / "fractures.npz")
     assert fractures["opened"].sum() == summary["n_opened_contacts"]

@@ -205,6 +205,49 @@ def test_fracture_guidance_reads_the_fluids_way_in():
     assert all(np.isnan(value) for value in nothing.values())
 
 
+def test_cracks_lie_across_their_contacts():
+    # decisions #97: a crack is perpendicular to the line of centres, midway across the gap,
+    # r1 + r2 long. Grains at (0, 0), r 1, and (3, 0), r 1.5: the gap is 0.5, its middle x = 1.25
+    from hmdem.coupling.micromechanics import crack_segments
+
+    starts, ends = crack_segments(np.array([[0.0, 0.0], [3.0, 0.0]]), np.array([1.0, 1.5]), np.array([[0, 1]]))
+    assert np.allclose(starts, [[1.25, -1.25]]) and np.allclose(ends, [[1.25, 1.25]])
+
+
+def lattice_cracks(pairs_of):
+    """A 1 x 1 sample of 50 x 50 grains of radius 0.01 on a square lattice and the pipes
+    ``pairs_of(index)`` names, as the fracture-zone reading sees a network."""
+    from types import SimpleNamespace
+
+    i, j = np.meshgrid(np.arange(50), np.arange(50), indexing="ij")
+    centres = np.c_[0.01 + 0.02 * i.ravel(), 0.01 + 0.02 * j.ravel()]
+    pairs = pairs_of(i.ravel() * 50 + j.ravel(), i.ravel(), j.ravel())
+    net = SimpleNamespace(pipe_grains=pairs, extent=(0.0, 1.0, 0.0, 1.0), pipe_length=np.full(len(pairs), 0.02))
+    return net, centres, np.full(len(centres), 0.01)
+
+
+def test_fracture_zone_dimension_of_a_crack_line_and_a_crack_grid():
+    # App. E's box counting from the grain scale to a quarter of the sample (digest H5): cracks
+    # joined end to end along one line read D_f = 1, cracks between every pair of neighbours
+    # (a grid finer than the smallest box) read 2. Tolerance 0.05: the box sizes are whole
+    # pixels, so ceil(512 / s) strays from 512 / s by up to 5 % over the scales used
+    from hmdem.coupling.micromechanics import fracture_zone_dimension
+
+    def row_pairs(index, i, j):  # grains of rows 24 and 25 facing each other across y = 0.5
+        return np.c_[index[j == 24], index[j == 24] + 1]
+
+    net, centres, radii = lattice_cracks(row_pairs)
+    assert fracture_zone_dimension(net, centres, radii, np.ones(len(net.pipe_grains), bool)) == pytest.approx(1.0, abs=0.05)
+
+    def all_pairs(index, i, j):
+        return np.r_[np.c_[index[j < 49], index[j < 49] + 1], np.c_[index[i < 49], index[i < 49] + 50]]
+
+    net, centres, radii = lattice_cracks(all_pairs)
+    opened = np.ones(len(net.pipe_grains), bool)
+    assert fracture_zone_dimension(net, centres, radii, opened) == pytest.approx(2.0, abs=0.05)
+    assert np.isnan(fracture_zone_dimension(net, centres, radii, ~opened))  # none opened: no zone
+
+
 def test_quasi_newton_converges_where_substitution_diverges():
     """IQN-ILS on a linear fixed point x = M x + b with three modes of gain -5, -3 and 2.5
     (substitution diverges) and weak coupling elsewhere: on a linear map the least-squares model

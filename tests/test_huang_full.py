@@ -172,10 +172,31 @@ def test_b3_front_less_compact_than_the_infiltration_cases(huang):
     # fracturing shapes the front (B3)"; the digest's tolerance is the ordering. Mass-radius D_f
     # (decisions #27), measured 2026-11-27/28 at paper size: A1 1.997-1.998, A3 1.997-2.000, B1
     # 1.998; B3 1.67-1.88 over three packings, a halved step, the paper's network and the
-    # calibrated sample (1.825 shipped; the experiment's fingers span 1.70-1.82)
+    # calibrated sample (1.825 shipped). The experiments' [1.70, 1.82] is the fracture zone's (next test)
     b3 = huang("B3")[0]["fractal_dimension"]
     for case in ("A1", "A3", "B1"):
         assert b3 < huang(case)[0]["fractal_dimension"], case
+
+
+def test_b3_fracture_zone_dimension_in_the_experimental_range(huang):
+    # H5, Fig. 25b: B3's fracturing zone by App. E's box counting, "consistent with the
+    # experimental range [1.70, 1.82]" (decisions #97: the opened contacts drawn as cracks).
+    # Measured 2026-12-01 at paper size: 1.778 (1.786 at half the step, 1.811 one-way; 1.780 and
+    # 1.796 on compaction --seed 1 and 2). Under this reading only: the cracks the fluid reached
+    # read 1.60 (benchmarks/fracture_dimension.py)
+    assert 1.70 <= huang("B3")[0]["fracture_fractal_dimension"] <= 1.82
+
+
+@pytest.mark.xfail(strict=True, reason="known model discrepancy, issue 3 open: the fracture zone's D_f rises with "
+                   "Ca* (A3 1.53, B1 1.64, B3 1.78 at paper size; decisions #97): A3's and B1's contacts open "
+                   "sparsely through their infiltrated discs, B3's throughout the sample")
+def test_fracture_zone_dimension_falls_with_ca_star(huang):
+    # H5: "the fractal dimension of the fracturing finger decreases as Ca* increases, consistent
+    # with the experimental range [1.70, 1.82]"; the digest's tolerance is the ordering. The
+    # fracturing cases in order of Ca*: A3 (32.3), B1 (56.3), B3 (1138.1)
+    d = [huang(case)[0]["fracture_fractal_dimension"] for case in ("A3", "B1", "B3")]
+    assert d[0] > d[1] > d[2]
+    assert all(1.70 <= x <= 1.82 for x in d)
 
 
 def test_b3_fractures_open_before_the_fluid_comes(huang):

@@ -12,11 +12,12 @@ from ..flow.diagnostics import regime_at_breakthrough
 from ..flow.fluids import FluidPair
 from ..cli import stop_note
 from ..plots import plot_force_chains, plot_fracture_chronology
-from ..report import pattern_fractal_dimension, radial_pattern_dimension, write_run
+from ..report import dimension_note, pattern_fractal_dimension, radial_pattern_dimension, write_run
 from ..snapshots import read_series
 from .geometry import contact_gaps
 from .micromechanics import (chronology_counts, energy_partition, fracture_and_side_resistance, fracture_guidance,
-                             fracture_timing, lowest_path_resistance, pipe_resistance)
+                             fracture_timing, fracture_zone_dimension, lowest_path_resistance,
+                             pipe_resistance)
 from .radial import classify_radial_regime, domain_perimeter
 
 GPA = 1e9
@@ -50,6 +51,8 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None, pac
     d_f = d_box = float("nan")
     if state.invaded.any():
         d_f, d_box = radial_pattern_dimension(sc, state), pattern_fractal_dimension(sc, state)
+    # H5's second figure: the fracture zone's D_f, its cracks where they opened in the packing
+    d_fracture = fracture_zone_dimension(net, initial_positions, grains.radii, model.opened)
     # the packing's own port perimeter (decisions #21), before the network takes the moved grains
     inlet_perimeter = domain_perimeter(net, int(net.inlet_domains[0]))
     # draw and export the deformed sample
@@ -69,6 +72,7 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None, pac
         "regime": regime_at_breakthrough(rec.status, classify_radial_regime(int(opened.sum()), d_f)),
         "fractal_dimension": d_f,
         "fractal_dimension_box_counting": d_box,
+        "fracture_fractal_dimension": d_fracture,
         "n_opened_contacts": int(opened.sum()),
         "n_open_contacts_at_end": int(model.open_now.sum()),
         "n_detached_contacts": int(model.detached.sum()),
@@ -130,9 +134,10 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None, pac
                           fixed=grains.fixed)
         plot_fracture_chronology(tmp / "fractures.png", net, state.saturation, grains.radii, positions[g[opened]],
                                  model.opened_time[opened], timing["reached"][opened], timing["before_fluid"][opened],
-                                 f"{sc.case.name}: {int(opened.sum())} opened contacts by t = {state.t:.4g} s; "
-                                 f"{chronology['n_opened_reached_by_fluid']} reached by the fluid,\n"
-                                 f"{chronology['n_opened_before_fluid']} of them opened before it came; "
+                                 f"{sc.case.name}: {int(opened.sum())} opened contacts by t = {state.t:.4g} s"
+                                 f"{f'; fracture zone {dimension_note(d_fracture)}' if opened.any() else ''}\n"
+                                 f"{chronology['n_opened_reached_by_fluid']} reached by the fluid, "
+                                 f"{chronology['n_opened_before_fluid']} of them opened before it came;\n"
                                  f"{chronology['n_opened_in_invaded_zone']} inside the invaded zone{stopped}")
 
     config = {"coupling": {k: v for k, v in vars(sc.coupling).items() if k != "aperture_law"},

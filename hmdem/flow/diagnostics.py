@@ -53,10 +53,37 @@ def fractal_dimension(net: Network, domain_mask: np.ndarray, smallest: float, la
     dimension". Returns (D_f, box sizes in m, counts).
     """
     image, h = rasterize_domains(net, domain_mask, pixels)
+    return image_box_dimension(image, h, smallest, largest, n_scales)
+
+
+def image_box_dimension(image: np.ndarray, h: float, smallest: float, largest: float,
+                        n_scales: int = 8) -> tuple[float, np.ndarray, np.ndarray]:
+    """App. E's box counting on a binary image of pixel size ``h``: the mean local slope of
+    -log N(s) over ``n_scales`` log-spaced box sizes s from ``smallest`` to ``largest`` [m].
+    Returns (D_f, box sizes in m, counts)."""
     sizes = np.unique(np.round(np.geomspace(smallest / h, largest / h, n_scales)).astype(int))
     sizes = sizes[sizes >= 1]
     counts = box_counts(image, sizes)
     return -mean_log_slope(sizes, counts), sizes * h, counts
+
+
+def rasterize_segments(starts: np.ndarray, ends: np.ndarray, extent, pixels: int = 512) -> tuple[np.ndarray, float]:
+    """Binary image (pixels x pixels over ``extent`` = (x0, x1, y0, y1), square pixels as
+    :func:`rasterize_domains`) of straight segments from ``starts`` to ``ends`` (n, 2), each a
+    one-pixel line sampled at a quarter of a pixel. Returns (image, pixel size in m)."""
+    x0, x1, y0, y1 = extent
+    h = max(x1 - x0, y1 - y0) / pixels
+    image = np.zeros((pixels, pixels), bool)
+    starts, ends = np.asarray(starts, float).reshape(-1, 2), np.asarray(ends, float).reshape(-1, 2)
+    if len(starts) == 0:
+        return image, h
+    samples = int(np.ceil(4 * np.max(np.linalg.norm(ends - starts, axis=1)) / h)) + 2
+    along = np.linspace(0.0, 1.0, samples)[None, :, None]
+    points = (starts[:, None, :] + along * (ends - starts)[:, None, :]).reshape(-1, 2)
+    col, row = np.floor((points - (x0, y0)) / h).astype(int).T
+    inside = (col >= 0) & (col < pixels) & (row >= 0) & (row < pixels)
+    image[row[inside], col[inside]] = True
+    return image, h
 
 
 def mean_log_slope(scale: np.ndarray, count: np.ndarray) -> float:
