@@ -105,7 +105,7 @@ def build_parser() -> argparse.ArgumentParser:
                           "step's pressure solve, one step late (decisions #66)")
     rad.add_argument("--dt", type=positive_number, help="nominal flow step [s] (default per case, Table 4)")
     rad.add_argument("--grain-density", type=positive_number, default=GRAIN_DENSITY,
-                     help="density of the 1 m-thick discs [kg/m^3] (default %(default)g, Table 3); heavier grains yield "
+                     help="density of the 1 m-thick discs [kg/m^3] (default %(default)g, Table 2); heavier grains yield "
                           "more slowly to the injection pressure (BENCHMARKS.md: B3's port)")
     rad.add_argument("--fixed-port", action="store_true",
                      help="hold the grains around the injection domain in place, a rigid injection tube whose "

@@ -5,7 +5,7 @@
 
 Parameters (``readParamsFromTable``; defaults in brackets): case [A1], oneWay [0], maxSteps
 [0 = to breakthrough], dt [0 = the case's], viscosityRatio [0 = the case's M], caStar [0 = the
-case's Ca*], grainDensity [0 = 2650 kg/m^3, Table 3], fixedPort
+case's Ca*], grainDensity [0 = 2650 kg/m^3, Table 2], fixedPort
 [0; 1 holds the injection domain's grains], friction [-1 = 0.6, Table 2], stiffnessRatio
 [0 = 1, Table 2], boundary ['fixed'; 'loaded' for pistons at the confining stress, decisions #86],
 packing ['' = the shipped sample; a path in quotes, its k_n comes with it], flags ['' = none;

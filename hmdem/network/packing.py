@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-GRAIN_DENSITY = 2650.0  # kg/m^3 of the grains (quartz sand, seed 004 Table 3)
+GRAIN_DENSITY = 2650.0  # kg/m^3 of the grains (quartz sand, seed 004 Table 2)
 CONTACT_STIFFNESS = 7.49e7  # k_n = k_s of the Huang contacts [N/m per m of depth] (seed 004 Table 2)
 GRAIN_FRICTION = 0.6  # Coulomb coefficient of the grain contacts (Table 2); walls are frictionless
 

@@ -60,6 +60,7 @@ def plot_phase_diagram(path: Path, rows: list[dict], crossover: float | None = N
     ``planned``: a sweep's runs as (log M, log Ca*), one per seed, so that a sweep stopped part-way
     shows its points not yet run as such (they took the finished cells' room, a new-user pass)."""
     from matplotlib.patches import Patch, Rectangle
+    from matplotlib.patheffects import withStroke
 
     from ..plots import plt  # Agg backend, Debian's Axes3D warning silenced
 
@@ -101,7 +102,9 @@ def plot_phase_diagram(path: Path, rows: list[dict], crossover: float | None = N
     else:
         x_lim, y_lim = (-5.0, 2.0), (-8.0, 2.0)
     for m, c, regime in stars:
-        ax.plot(m, c, marker="*", ms=14, color=REGIME_COLOURS[regime], mec="black", zorder=4)
+        # a white ring: a star on a cell of its own colour would look hollow without it
+        ax.plot(m, c, marker="*", ms=14, color=REGIME_COLOURS[regime], mec="black", zorder=4,
+                path_effects=[withStroke(linewidth=3, foreground="white")])
     if crossover is not None:
         x = np.linspace(min(x_lim[0], -6), max(x_lim[1], 3), 200)
         y = math.log10(crossover) + np.minimum(x, 0.0)
@@ -126,7 +129,7 @@ def plot_phase_diagram(path: Path, rows: list[dict], crossover: float | None = N
                                   f"beyond {WEAK_COMPRESSION}, the constant-K range"))
     handles.append(plt.Line2D([], [], marker="*", ls="", ms=12, color="grey", mec="black",
                               label=f"Lenormand et al. (1988) experiments at Ca* = {LENORMAND_L_OVER_A:.1f} Ca "
-                                    "(their L / ā, seed 004 §4.1)"))
+                                    "(their L / ā, seed 004 §4.1),\ncoloured by the regime they observed"))
     if crossover is not None:
         handles.append(plt.Line2D([], [], color="black", ls="--",
                                   label=f"viscous = 10 x capillary spread (Darcy; Ca*$_c$ = {crossover:.3g} at M ≥ 1)"))
