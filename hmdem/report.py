@@ -9,25 +9,17 @@ from pathlib import Path
 import numpy as np
 
 from .cli import run_record, stop_note
-from .flow.diagnostics import (classify_regime, early_peak, fractal_dimension,
-                               mass_radius_dimension, regime_at_breakthrough)
+from .flow.diagnostics import (classify_regime, early_peak, fractal_dimension, grain_diameter,
+                               mass_radius_dimension, pattern_scales, regime_at_breakthrough)
 from .flow.fluids import WEAK_COMPRESSION
 from .plots import plot_pattern, plot_pressure
 from .rundir import atomic_run_directory, write_json, write_rows, write_toml
 from .snapshots import domain_mesh, take, write_series
 
 
-def grain_diameter(net) -> float:
-    """The median pipe length r1 + r2: the smallest scale of the pattern dimensions."""
-    return float(np.median(net.pipe_length))
-
-
 def pattern_fractal_dimension(sc, state) -> float:
     """D_f of the invaded domains, box sizes from the grain scale to a quarter of the sample."""
-    net = sc.net
-    grain = grain_diameter(net)
-    size = max(net.extent[1] - net.extent[0], net.extent[3] - net.extent[2])
-    return fractal_dimension(net, state.saturation >= 0.5, grain, size / 4)[0]
+    return fractal_dimension(sc.net, state.saturation >= 0.5, *pattern_scales(sc.net))[0]
 
 
 def radial_pattern_dimension(sc, state) -> float:

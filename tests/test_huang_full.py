@@ -178,25 +178,30 @@ def test_b3_front_less_compact_than_the_infiltration_cases(huang):
         assert b3 < huang(case)[0]["fractal_dimension"], case
 
 
-def test_b3_fracture_zone_dimension_in_the_experimental_range(huang):
-    # H5, Fig. 25b: B3's fracturing zone by App. E's box counting, "consistent with the
-    # experimental range [1.70, 1.82]" (decisions #97: the opened contacts drawn as cracks).
-    # Measured 2026-12-01 at paper size: 1.778 (1.786 at half the step, 1.811 one-way; 1.780 and
-    # 1.796 on compaction --seed 1 and 2). Under this reading only: the cracks the fluid reached
-    # read 1.60 (benchmarks/fracture_dimension.py)
-    assert 1.70 <= huang("B3")[0]["fracture_fractal_dimension"] <= 1.82
+FRACTURING_CASES = ("A3", "B1", "B3")  # in order of Ca*: 32.3, 56.3, 1138.1
 
 
 @pytest.mark.xfail(strict=True, reason="known model discrepancy, issue 3 open: the fracture zone's D_f rises with "
                    "Ca* (A3 1.53, B1 1.64, B3 1.78 at paper size; decisions #97): A3's and B1's contacts open "
                    "sparsely through their infiltrated discs, B3's throughout the sample")
 def test_fracture_zone_dimension_falls_with_ca_star(huang):
-    # H5: "the fractal dimension of the fracturing finger decreases as Ca* increases, consistent
-    # with the experimental range [1.70, 1.82]"; the digest's tolerance is the ordering. The
-    # fracturing cases in order of Ca*: A3 (32.3), B1 (56.3), B3 (1138.1)
-    d = [huang(case)[0]["fracture_fractal_dimension"] for case in ("A3", "B1", "B3")]
+    # H5: "the fractal dimension of the fracturing finger decreases as Ca* increases"; the
+    # digest's tolerance is the ordering. App. E's box counting on the opened contacts drawn as
+    # cracks (decisions #97); the other readings of benchmarks/fracture_dimension.py rise too
+    d = [huang(case)[0]["fracture_fractal_dimension"] for case in FRACTURING_CASES]
     assert d[0] > d[1] > d[2]
-    assert all(1.70 <= x <= 1.82 for x in d)
+
+
+@pytest.mark.xfail(strict=True, reason="known model discrepancy, issue 3 open: A3's and B1's fracture zones read "
+                   "1.53 and 1.64 at paper size, below the range; B3's 1.78 is inside it, as are random cracks at "
+                   "its density (decisions #97)")
+def test_fracture_zone_dimension_in_the_experimental_range(huang):
+    # H5: the fracturing fingers' D_f is "consistent with the experimental range [1.70, 1.82]"
+    # (Fig. 25b measures B3's). The figure mostly reads how densely the contacts open: random
+    # cracks at B3's share of its contacts read 1.77 (benchmarks/fracture_dimension.py), so B3
+    # alone inside the range would not show fingers, and the three are tested together
+    d = {case: huang(case)[0]["fracture_fractal_dimension"] for case in FRACTURING_CASES}
+    assert all(1.70 <= x <= 1.82 for x in d.values()), d
 
 
 def test_b3_fractures_open_before_the_fluid_comes(huang):

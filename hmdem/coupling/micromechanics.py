@@ -12,7 +12,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from ..flow.diagnostics import image_box_dimension, rasterize_segments
+from ..flow.diagnostics import image_box_dimension, pattern_scales, rasterize_segments
 from ..flow.fluids import FluidPair, conductance
 from ..network.network import OUTSIDE, Network, pipes_touching
 
@@ -42,13 +42,15 @@ def lowest_path_resistance(net: Network, pipes: np.ndarray, resistance: np.ndarr
 
 
 def crack_segments(positions: np.ndarray, radii: np.ndarray, pipe_grains: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each grain pair of ``pipe_grains`` (n, 2) drawn as a crack, the usual DEM fracture map: a
-    segment across the contact, perpendicular to the line of centres, centred midway across the
-    gap, as long as the two radii together (decisions #97). Returns (starts, ends), (n, 2) each."""
+    """Each grain pair of ``pipe_grains`` (n, 2) drawn as a crack, as bonded-particle fracture maps
+    draw a broken bond (Potyondy & Cundall 2004): a segment across the contact, perpendicular to
+    the line of centres, centred midway across the gap (or the overlap), as long as the two
+    parents' mean diameter, r1 + r2 (decisions #97). Returns (starts, ends), (n, 2) each."""
     a, b = np.asarray(pipe_grains).reshape(-1, 2).T
     axis = positions[b] - positions[a]
-    distance = np.linalg.norm(axis, axis=1)
-    unit = axis / distance[:, None]
+    distance = np.linalg.norm(axis, axis=1)[:, None]
+    unit = np.divide(axis, distance, out=np.full_like(axis, np.nan), where=distance > 0)  # coincident: nan
+    distance = distance[:, 0]
     middle = positions[a] + unit * (radii[a] + 0.5 * (distance - radii[a] - radii[b]))[:, None]
     across = np.stack([-unit[:, 1], unit[:, 0]], axis=1) * (0.5 * (radii[a] + radii[b]))[:, None]
     return middle - across, middle + across
@@ -56,15 +58,14 @@ def crack_segments(positions: np.ndarray, radii: np.ndarray, pipe_grains: np.nda
 
 def fracture_zone_dimension(net: Network, positions: np.ndarray, radii: np.ndarray, opened: np.ndarray) -> float:
     """D_f of the fracture zone (seed 004 App. E, Fig. 25b; digest H5): App. E's box counting, from
-    the grain scale (the median pipe length r1 + r2) to a quarter of the sample, on the
+    the grain scale to a quarter of the sample (:func:`~hmdem.flow.diagnostics.pattern_scales`), on the
     ``opened`` pipes' contacts drawn as cracks (:func:`crack_segments`); nan with none opened.
     Box counting, not #27's mass-radius reading of the invaded zone: a crack set has no mass
     at its centre once the port's grains are pushed out (decisions #97)."""
     if not np.any(opened):
         return float("nan")
     image, h = rasterize_segments(*crack_segments(positions, radii, net.pipe_grains[opened]), net.extent)
-    size = max(net.extent[1] - net.extent[0], net.extent[3] - net.extent[2])
-    return image_box_dimension(image, h, float(np.median(net.pipe_length)), size / 4)[0]
+    return image_box_dimension(image, h, *pattern_scales(net))[0]
 
 
 def fracture_and_side_resistance(pipe_domains: np.ndarray, length: np.ndarray, aperture: np.ndarray,

@@ -32,6 +32,18 @@ def rasterize_domains(net: Network, domain_mask: np.ndarray, pixels: int = 512) 
     return img.reshape(pixels, pixels), h
 
 
+def grain_diameter(net: Network) -> float:
+    """The median pipe length r1 + r2: the smallest scale of the pattern dimensions."""
+    return float(np.median(net.pipe_length))
+
+
+def pattern_scales(net: Network) -> tuple[float, float]:
+    """The box sizes App. E's counting spans on a network [m]: the grain scale to a quarter of
+    the sample (its longer side)."""
+    x0, x1, y0, y1 = net.extent
+    return grain_diameter(net), max(x1 - x0, y1 - y0) / 4
+
+
 def box_counts(image: np.ndarray, sizes) -> np.ndarray:
     """Number of s x s boxes holding at least one set pixel, for each box size s (pixels)."""
     counts = []
@@ -75,6 +87,8 @@ def rasterize_segments(starts: np.ndarray, ends: np.ndarray, extent, pixels: int
     h = max(x1 - x0, y1 - y0) / pixels
     image = np.zeros((pixels, pixels), bool)
     starts, ends = np.asarray(starts, float).reshape(-1, 2), np.asarray(ends, float).reshape(-1, 2)
+    drawn = np.isfinite(starts).all(axis=1) & np.isfinite(ends).all(axis=1)  # no direction: no segment
+    starts, ends = starts[drawn], ends[drawn]
     if len(starts) == 0:
         return image, h
     samples = int(np.ceil(4 * np.max(np.linalg.norm(ends - starts, axis=1)) / h)) + 2
