@@ -105,10 +105,21 @@ def test_breakthrough_time_within_40_percent_of_the_papers(huang, case):
     assert s["breakthrough_time_s"] == pytest.approx(PAPER_BREAKTHROUGH_S[case], rel=0.4)
 
 
-def test_a3_fractures_near_the_port(huang):
-    s, _ = huang("A3")
-    assert s["status"] == "breakthrough"
-    assert s["n_opened_contacts"] > 0  # H2
+@pytest.mark.parametrize("case", ["A3", "B1"])
+def test_fractures_start_at_the_port(huang, case):
+    # H2, H3: from A1 to A3 and B1 "the injection energy becomes large enough to mobilize grains
+    # near the inflow port, initiating fractures": contacts open, the first of them one of the
+    # injection domain's own (2026-12-01 at paper size: A3's and B1's first opened alone in its
+    # step, a port contact each; B3's first 15 include all 4 of the port's)
+    from hmdem.network.network import pipes_touching
+
+    s = huang(case)[0]
+    assert s["status"] == "breakthrough" and s["n_opened_contacts"] > 0
+    run = huang.directory[(case,)]
+    fractures, network = np.load(run / "fractures.npz"), np.load(run / "network.npz")
+    opened_time = fractures["opened_time"]
+    first = fractures["opened"] & (opened_time == opened_time[fractures["opened"]].min())
+    assert np.all(pipes_touching(network["pipe_domains"], network["inlet_domains"])[first])
 
 
 def test_a3_fractures_stay_in_the_infiltration_zone(huang):
