@@ -42,10 +42,11 @@ def lowest_path_resistance(net: Network, pipes: np.ndarray, resistance: np.ndarr
 
 
 def crack_segments(positions: np.ndarray, radii: np.ndarray, pipe_grains: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each grain pair of ``pipe_grains`` (n, 2) drawn as a crack, as bonded-particle fracture maps
-    draw a broken bond (Potyondy & Cundall 2004): a segment across the contact, perpendicular to
-    the line of centres, centred midway across the gap (or the overlap), as long as the two
-    parents' mean diameter, r1 + r2 (decisions #97). Returns (starts, ends), (n, 2) each."""
+    """Each grain pair of ``pipe_grains`` (n, 2) drawn as a crack, as DEM fracture maps commonly
+    draw a broken bond: a segment across the contact, perpendicular to the line of centres,
+    centred midway across the gap (or the overlap), as long as the two grains' mean diameter,
+    r1 + r2 (our choice where the seed draws none: decisions #97). Returns (starts, ends), (n, 2)
+    each."""
     a, b = np.asarray(pipe_grains).reshape(-1, 2).T
     axis = positions[b] - positions[a]
     distance = np.linalg.norm(axis, axis=1)[:, None]
