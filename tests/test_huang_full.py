@@ -18,6 +18,8 @@ import sys
 import numpy as np
 import pytest
 
+from hmdem.network.network import pipes_touching
+
 pytestmark = [pytest.mark.yade, pytest.mark.slow]
 
 
@@ -111,8 +113,6 @@ def test_fractures_start_at_the_port(huang, case):
     # near the inflow port, initiating fractures": contacts open, the first of them one of the
     # injection domain's own (2026-12-01 at paper size: A3's and B1's first opened alone in its
     # step, a port contact each; B3's first 15 include all 4 of the port's)
-    from hmdem.network.network import pipes_touching
-
     s = huang(case)[0]
     assert s["status"] == "breakthrough" and s["n_opened_contacts"] > 0
     run = huang.directory[(case,)]

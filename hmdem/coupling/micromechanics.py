@@ -49,9 +49,9 @@ def crack_segments(positions: np.ndarray, radii: np.ndarray, pipe_grains: np.nda
     each."""
     a, b = np.asarray(pipe_grains).reshape(-1, 2).T
     axis = positions[b] - positions[a]
-    distance = np.linalg.norm(axis, axis=1)[:, None]
-    unit = np.divide(axis, distance, out=np.full_like(axis, np.nan), where=distance > 0)  # coincident: nan
-    distance = distance[:, 0]
+    distance = np.linalg.norm(axis, axis=1)
+    # coincident grains have no direction: nan, which rasterize_segments leaves out
+    unit = np.divide(axis, distance[:, None], out=np.full_like(axis, np.nan), where=distance[:, None] > 0)
     middle = positions[a] + unit * (radii[a] + 0.5 * (distance - radii[a] - radii[b]))[:, None]
     across = np.stack([-unit[:, 1], unit[:, 0]], axis=1) * (0.5 * (radii[a] + radii[b]))[:, None]
     return middle - across, middle + across

@@ -118,6 +118,7 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None, pac
     }
 
     stopped = stop_note(rec.status, "breakthrough")
+    fracture_note = f"; fracture zone {dimension_note(d_fracture)}" if opened.any() else ""
 
     def files(tmp: Path) -> None:
         np.savez_compressed(tmp / "fractures.npz", opened=opened, open_at_end=model.open_now, detached=model.detached,
@@ -135,7 +136,7 @@ def write_radial_run(out: Path, sc, model, state, rec, argv, snapshots=None, pac
         plot_fracture_chronology(tmp / "fractures.png", net, state.saturation, grains.radii, positions[g[opened]],
                                  model.opened_time[opened], timing["reached"][opened], timing["before_fluid"][opened],
                                  f"{sc.case.name}: {int(opened.sum())} opened contacts by t = {state.t:.4g} s"
-                                 f"{f'; fracture zone {dimension_note(d_fracture)}' if opened.any() else ''}\n"
+                                 f"{fracture_note}\n"
                                  f"{chronology['n_opened_reached_by_fluid']} reached by the fluid, "
                                  f"{chronology['n_opened_before_fluid']} of them opened before it came;\n"
                                  f"{chronology['n_opened_in_invaded_zone']} inside the invaded zone{stopped}")
