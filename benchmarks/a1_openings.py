@@ -30,6 +30,7 @@ from hmdem.dem.runs import start_grains  # noqa: E402
 from hmdem.flow.grain_forces import pressure_force_matrix  # noqa: E402
 from hmdem.network.network import pipes_touching  # noqa: E402
 from hmdem.network.packing import DiscPacking  # noqa: E402
+from md_table import header  # noqa: E402
 
 
 def scenario(packing: str | None, surface_tension: float | None):
@@ -77,10 +78,10 @@ def main() -> None:
     forces = pressure_force_matrix(net, pk.radii)
     port = net.domain_centroid[net.inlet_domains].mean(axis=0)
     radius = np.linalg.norm(net.domain_centroid - port, axis=1)
-    print("| contact | force after settling [N] (weaker contacts) | r from port [um] | detached at [s] | fluid out to [um] | "
-          "opened at [s] | largest separation [um] | grains' domains at detachment: wet | lowest p [kPa] | "
-          "largest fall of p in the step [kPa] | separating fluid force before / at [N] |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print(header("contact", "force after settling [N] (weaker contacts)", "r from port [um]", "detached at [s]",
+                 "fluid out to [um]", "opened at [s]", "largest separation [um]",
+                 "grains' domains at detachment: wet", "lowest p [kPa]", "largest fall of p in the step [kPa]",
+                 "separating fluid force before / at [N]"))
     for pipe in np.flatnonzero(model.opened):
         g0, g1 = net.pipe_grains[pipe]
         normal = pk.centres[g1] - pk.centres[g0]

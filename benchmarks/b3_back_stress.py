@@ -24,6 +24,7 @@ import numpy as np
 from b3_volume_split import starting_geometry  # a sibling script (benchmarks/ is the script's own folder)
 from hmdem.coupling.model import VOLUME_FLOOR
 from hmdem.snapshots import read_collection
+from md_table import header
 
 
 def frames(run: Path) -> np.ndarray:
@@ -63,9 +64,9 @@ def main() -> None:
     parser.add_argument("runs", nargs="+", type=Path, help="radial run directories with snapshots")
     parser.add_argument("--frames", action="store_true", help="print each snapshot")
     args = parser.parse_args()
-    print("| run | k_n [N/m] | t_f [s] | trough p_in [MPa] at [us] | p_in at t_f [MPa] | dry compaction at t_f | "
-          "p0 [MPa] | M [MPa] | R² | against ln(invaded area): R², slope per unit ln R [MPa] |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print(header("run", "k_n [N/m]", "t_f [s]", "trough p_in [MPa] at [us]", "p_in at t_f [MPa]",
+                 "dry compaction at t_f", "p0 [MPa]", "M [MPa]", "R²",
+                 "against ln(invaded area): R², slope per unit ln R [MPa]"))
     for run in args.runs:
         r = frames(run)
         dem = tomllib.loads((run / "config.toml").read_text())["dem"]

@@ -21,6 +21,7 @@ from hmdem.coupling.model import CoupledFlowModel  # noqa: E402
 from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario  # noqa: E402
 from hmdem.dem.runs import start_grains  # noqa: E402
 from hmdem.network.packing import DiscPacking  # noqa: E402
+from md_table import header  # noqa: E402
 
 WEAK = 0.1  # hmdem.report's weakly compressible bound (decisions #31)
 
@@ -54,8 +55,8 @@ def main() -> None:
     state, rec = model.run(progress=log)
     print(f"B3: {rec.status} at t = {state.t:.4g} s after {rec.steps} steps; peak p/K {rec.peak_compression:.2f}; "
           f"{len(log.rows)} steps with a domain above p/K = {WEAK}")
-    print("| t [µs] | domain | p/K | p [MPa] | S at start / end | invaded neighbours | their median p [MPa] |")
-    print("|---|---|---|---|---|---|---|")
+    print(header("t [µs]", "domain", "p/K", "p [MPa]", "S at start / end", "invaded neighbours",
+                 "their median p [MPa]"))
     shown = set()
     for t, i, ratio, p, s0, s1, wet, nb, p_nb in sorted(log.rows, key=lambda r: -r[2]):
         if i in shown:

@@ -11,7 +11,6 @@ than 2 % or 5 % of the running peak whose next step rises by more than the same 
 for does not count) and H10's own count of falls on its 200-point grid (``one_way_variants.falls``,
 as tests/test_huang_full.py counts them). Takes a second.
 """
-import argparse
 import csv
 import json
 import shlex
@@ -22,6 +21,7 @@ import numpy as np
 
 # a sibling script: importable when this file is run as a script (its folder leads sys.path)
 from one_way_variants import falls
+from md_table import print_run_table
 
 
 def dips(t: np.ndarray, p: np.ndarray, fraction: float) -> np.ndarray:
@@ -52,14 +52,9 @@ def row(run: Path) -> str:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("runs", nargs="+", type=Path, help="run directories of radial --case B3")
-    args = parser.parse_args()
-    print("| run | packing | dt [s] | steps | breakthrough [s] | largest one-step fall (at) | dips > 2 % | "
-          "dips > 5 % | H10 grid falls |")
-    print("|---|---|---|---|---|---|---|---|---|")
-    for run in args.runs:
-        print(row(run))
+    print_run_table(__doc__.splitlines()[0],
+                    ["run", "packing", "dt [s]", "steps", "breakthrough [s]", "largest one-step fall (at)",
+                     "dips > 2 %", "dips > 5 %", "H10 grid falls"], row, "run directories of radial --case B3")
 
 
 if __name__ == "__main__":

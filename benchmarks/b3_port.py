@@ -28,6 +28,7 @@ from hmdem.dem.runs import start_grains  # noqa: E402
 from hmdem.flow.diagnostics import early_peak  # noqa: E402
 from hmdem.network.packing import GRAIN_DENSITY  # noqa: E402
 from hmdem.report import radial_pattern_dimension  # noqa: E402
+from md_table import header  # noqa: E402
 
 MPA = 1e6
 VARIANTS = {  # label -> (build_radial_scenario keywords, CouplingSetup fields)
@@ -74,9 +75,9 @@ def main() -> None:
     parser.add_argument("--variants", nargs="+", choices=tuple(VARIANTS), default=list(VARIANTS))
     parser.add_argument("--t-max", type=float, help="stop here [s] (default: breakthrough)")
     args = parser.parse_args()
-    print("| port | early peak p_in [MPa] | p_in at 10 / 20 / 29 us [MPa] | p_in on a 10-point grid [MPa] | "
-          "p(end) / p(end / 5) | end | opened | D_f | largest displacement [um] | port pipes' mean aperture [um] |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print(header("port", "early peak p_in [MPa]", "p_in at 10 / 20 / 29 us [MPa]", "p_in on a 10-point grid [MPa]",
+                 "p(end) / p(end / 5)", "end", "opened", "D_f", "largest displacement [um]",
+                 "port pipes' mean aperture [um]"))
     for label in args.variants:
         print(run(label, args.t_max), flush=True)
 

@@ -14,7 +14,6 @@ columns count the polygons that have turned inside out and the room their floors
 sum of V less the hull area, which the polygons' own signed areas keep exactly). Takes a second
 per directory.
 """
-import argparse
 import json
 from pathlib import Path
 from types import SimpleNamespace
@@ -22,6 +21,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from hmdem.coupling.geometry import DomainGeometry
+from md_table import print_run_table
 
 
 def starting_geometry(net, initial: np.ndarray) -> DomainGeometry:
@@ -51,18 +51,6 @@ def row(run: Path) -> str:
             f"{fluid:.3g} | {infiltrated / fluid:.0%} | {(fluid - infiltrated) / fluid:.0%} | {int((~dry).sum())} | "
             f"{(v0[dry] - v1[dry]).sum() / v0[dry].sum():.1%} | {fluid / injected:.3f} | {int((polygon < 0).sum())} | "
             f"{(v1.sum() - polygon.sum()) / fluid:.1%} |")
-
-
-def print_run_table(description: str, columns: list[str], row) -> None:
-    """The command line of a script reading finished run directories: one markdown row,
-    ``row(run)``, per directory given."""
-    parser = argparse.ArgumentParser(description=description)
-    parser.add_argument("runs", nargs="+", type=Path, help="finished radial run directories")
-    args = parser.parse_args()
-    print("| " + " | ".join(columns) + " |")
-    print("|" + "---|" * len(columns))
-    for run in args.runs:
-        print(row(run), flush=True)
 
 
 def main() -> None:

@@ -22,6 +22,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario  # noqa: E402
 from hmdem.dem.runs import start_grains  # noqa: E402
 from hmdem.coupling.replica import DiscReplica  # noqa: E402
+from md_table import header  # noqa: E402
 
 
 def main() -> None:
@@ -45,9 +46,8 @@ def main() -> None:
     twin.run(1)  # compiles (or loads numba's cache) outside the timings
     print(f"{platform.processor() or platform.machine()}, {platform.python_version()}; {args.case} sample, "
           f"{len(grains.radii)} discs, DEM step {grains.timestep:.3g} s; carried state read in {carried_ms:.1f} ms")
-    print("| cycles | YADE ms/cycle | replica ms/cycle | largest displacement [m] | largest difference [m] | "
-          "contacts YADE / replica |")
-    print("|---|---|---|---|---|---|")
+    print(header("cycles", "YADE ms/cycle", "replica ms/cycle", "largest displacement [m]", "largest difference [m]",
+                 "contacts YADE / replica"))
     for cycles in args.cycles:
         grains.restore_state()
         twin.restore_state()

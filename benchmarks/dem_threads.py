@@ -16,6 +16,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from md_table import header
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -58,8 +59,7 @@ def main() -> None:
         return
     print(f"{platform.processor() or platform.machine()}, {platform.python_version()}; "
           f"{args.cycles} cycles x 4 per process")
-    print("| threads | ms per DEM cycle (min-max) | snapshot save / restore [ms] | positions digest |")
-    print("|---|---|---|---|")
+    print(header("threads", "ms per DEM cycle (min-max)", "snapshot save / restore [ms]", "positions digest"))
     for threads in args.threads:
         for _ in range(args.repeats):
             proc = subprocess.run([sys.executable, __file__, "--child", str(threads), "--cycles", str(args.cycles)],

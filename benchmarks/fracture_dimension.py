@@ -14,7 +14,6 @@ share of the contacts closed after settling, the opened ones' D_f there, and the
 random draws of as many of those contacts (seeds 0-4). Run the directories first (``python -m
 hmdem.hele_shaw radial --case X --out RUN_DIR``). Takes a few seconds.
 """
-import argparse
 import json
 from pathlib import Path
 from types import SimpleNamespace
@@ -23,6 +22,7 @@ import numpy as np
 
 from hmdem.coupling.micromechanics import crack_segments, fracture_timing, fracture_zone_dimension
 from hmdem.flow.diagnostics import fractal_dimension, pattern_scales
+from md_table import print_run_table
 
 
 def random_control(net, positions, radii, opened, closed_at_start) -> str:
@@ -68,15 +68,11 @@ def row(run: Path) -> str:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("runs", nargs="+", type=Path, help="finished radial run directories")
-    args = parser.parse_args()
-    print("| run | case | status | summary's D_f | every opened contact (count) | reached by the fluid "
-          "| inside the invaded zone | at the final positions | the pores beside them (count) "
-          "| opened share within 90 % of the cracks' reach | their D_f | random at that share (range) |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
-    for run in args.runs:
-        print(row(run))
+    print_run_table(__doc__.splitlines()[0],
+                    ["run", "case", "status", "summary's D_f", "every opened contact (count)",
+                     "reached by the fluid", "inside the invaded zone", "at the final positions",
+                     "the pores beside them (count)", "opened share within 90 % of the cracks' reach", "their D_f",
+                     "random at that share (range)"], row)
 
 
 if __name__ == "__main__":

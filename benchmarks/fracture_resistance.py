@@ -9,20 +9,24 @@ For each ParaView snapshot of a radial run this prints the lowest R_s (Eq. 27 at
 viscosity) of the fractures the fluid has reached away from the port and of their sides, and
 the ratio (``hmdem.coupling.output.fracture_resistance_series``, decisions #67).
 """
+import argparse
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from hmdem.coupling.output import GPA, fracture_resistance_series  # noqa: E402
+from md_table import header  # noqa: E402
 
 
 def main(run: Path) -> None:
-    print("| t [s] | fractures reached by the fluid | lowest R_s in them [GPa s/m2] | at their sides | ratio |")
-    print("|---|---|---|---|---|")
+    print(header("t [s]", "fractures reached by the fluid", "lowest R_s in them [GPa s/m2]", "at their sides",
+                 "ratio"))
     for t, reached, fracture, side in fracture_resistance_series(run):
         print(f"| {t:.3g} | {reached} | {fracture / GPA:.3g} | {side / GPA:.3g} | {fracture / side:.2g} |")
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]))
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("run", type=Path, help="a radial run directory with ParaView snapshots (--snapshots N)")
+    main(parser.parse_args().run)

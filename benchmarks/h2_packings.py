@@ -22,6 +22,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
+from md_table import header
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -82,9 +83,8 @@ def main() -> None:
         return
     if min(args.discs) < 50 or min(args.seeds) < 0 or args.jobs < 1:
         parser.error("--discs must be at least 50, --seeds non-negative and --jobs at least 1")
-    print("| discs | side [mm] | seed | A3 early peak [kPa] | A1 max [kPa] | H2 ratio | H6 t_A1/t_A3 | "
-          "A1 opened | A3 opened | wall [s] |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print(header("discs", "side [mm]", "seed", "A3 early peak [kPa]", "A1 max [kPa]", "H2 ratio", "H6 t_A1/t_A3",
+                 "A1 opened", "A3 opened", "wall [s]"))
     samples = [(d, s) for d in args.discs for s in args.seeds]
     failed = 0
     with ThreadPoolExecutor(args.jobs) as pool:  # one process per sample: YADE is one scene a process

@@ -24,6 +24,7 @@ from b3_port import VARIANTS, variant_scenario  # noqa: E402
 from hmdem.coupling.micromechanics import energy_partition  # noqa: E402
 from hmdem.coupling.model import CoupledFlowModel  # noqa: E402
 from hmdem.dem.runs import start_grains  # noqa: E402
+from md_table import header  # noqa: E402
 
 KPA, UJ = 1e3, 1e-6
 
@@ -52,9 +53,8 @@ def main() -> None:
     parser.add_argument("--variants", nargs="+", choices=tuple(VARIANTS), default=["free", "rho10", "rho100", "fixed"])
     parser.add_argument("--t-max", type=float, default=2e-5, help="stop here [s] (A3's held port opens at 13 us)")
     args = parser.parse_args()
-    print("| run | first step: p_in, dE_in, dissipated | first opening | its step: length | p_in | dE_in | dE_f | "
-          "dissipated | contacts opened in it: forces after settling [N per m], weakest first |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print(header("run", "first step: p_in, dE_in, dissipated", "first opening", "its step: length", "p_in", "dE_in",
+                 "dE_f", "dissipated", "contacts opened in it: forces after settling [N per m], weakest first"))
     for case in args.cases:
         for label in args.variants:
             print(run(case, label, args.t_max), flush=True)

@@ -31,6 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from hmdem.coupling.model import CoupledFlowModel  # noqa: E402
 from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario  # noqa: E402
 from hmdem.dem.runs import start_grains  # noqa: E402
+from md_table import header  # noqa: E402
 
 UJ, GPA = 1e-6, 1e9
 
@@ -82,9 +83,8 @@ def main() -> None:
     parser.add_argument("--cases", nargs="+", choices=("A3", "B3"), default=["A3", "B3"])
     parser.add_argument("--dt", type=float, default=8e-7, help="flow step [s] (both cases' default 8e-7)")
     args = parser.parse_args()
-    print("| case | step | solve: dissipated, dE_f | end viscosity | Eq. 27 at the end | port R_s, start -> end "
-          "[GPa s/m^2] |")
-    print("|---|---|---|---|---|---|")
+    print(header("case", "step", "solve: dissipated, dE_f", "end viscosity", "Eq. 27 at the end",
+                 "port R_s, start -> end [GPa s/m^2]"))
     for case in args.cases:
         for row in run(case, args.dt):
             print(row, flush=True)

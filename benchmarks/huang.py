@@ -15,6 +15,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from md_table import header
+
 COLUMNS = ("case", "status", "t [s]", "wall [s]", "steps", "DEM cycles/step", "P-V it./step", "halvings",
            "DEM %", "rewind %", "peak p_in [Pa]", "opened", "open at end", "detached", "D_f", "regime")
 
@@ -34,7 +36,7 @@ def row(summary: dict) -> list:
 
 
 def table(out: Path, cases) -> str:
-    lines = ["| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
+    lines = [header(*COLUMNS)]
     for case in cases:
         path = out / case / "summary.json"
         if path.is_file():

@@ -21,7 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from b3_volume_split import print_run_table, starting_geometry  # a sibling script (benchmarks/ is its folder)
+from b3_volume_split import starting_geometry  # a sibling script (benchmarks/ is its folder)
+from md_table import print_run_table
 from hmdem.coupling.micromechanics import filling_order, fracture_guidance
 
 

@@ -27,6 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from hmdem.cases import CASES  # noqa: E402
 from hmdem.coupling.darcy import solve_darcy  # noqa: E402
 from hmdem.scenario import build_network  # noqa: E402
+from md_table import header  # noqa: E402
 
 PAPER_PERMEABILITY = 1.066e-9  # seed 004 §4.1, Eq. 21 on the paper's network
 PAPER_PIPES = 3061
@@ -46,9 +47,8 @@ def main(argv=None) -> int:
     base = CASES["darcy"]
     a_mean = base.mean_aperture
     print(f"paper: k = {PAPER_PERMEABILITY:.4g} m2 on {PAPER_PIPES} pipes, a_mean = {a_mean * 1e3:.2f} mm")
-    print("| near-contact gap | pipes | domains | k, spread 0.7 [m2] (seeds) | k, uniform a_mean [m2] "
-          "| k / paper's | a_mean for the paper's k [mm] |")
-    print("|---|---|---|---|---|---|---|")
+    print(header("near-contact gap", "pipes", "domains", "k, spread 0.7 [m2] (seeds)", "k, uniform a_mean [m2]",
+                 "k / paper's", "a_mean for the paper's k [mm]"))
     for gap in GAPS:
         case = replace(base, contact_gap=gap)
         ks = [permeability(case, seed)[0] for seed in range(args.seeds)]

@@ -26,6 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from hmdem.coupling.model import CoupledFlowModel  # noqa: E402
 from hmdem.coupling.radial import RADIAL_CASES, build_radial_scenario  # noqa: E402
 from hmdem.dem.runs import start_grains  # noqa: E402
+from md_table import header  # noqa: E402
 
 MPA = 1e6
 
@@ -61,9 +62,8 @@ def main() -> None:
     parser.add_argument("--water-moduli", nargs="+", type=float, default=[2000.0, 0.75], help="[MPa]")
     parser.add_argument("--t-max", type=float, help="stop here [s] (default: breakthrough)")
     args = parser.parse_args()
-    print("| dV | K water [MPa] | end | steps | opened | min p_in [MPa] | max p_in [MPa] | H10 falls | "
-          "steps falling > 2 % | > 10 % |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print(header("dV", "K water [MPa]", "end", "steps", "opened", "min p_in [MPa]", "max p_in [MPa]", "H10 falls",
+                 "steps falling > 2 %", "> 10 %"))
     for modulus in args.water_moduli:
         for volume in args.variants:
             print(run(volume, modulus * MPA, args.t_max), flush=True)

@@ -20,6 +20,7 @@ import numpy as np
 
 from b3_volume_split import starting_geometry  # a sibling script (benchmarks/ is its folder)
 from hmdem.coupling.micromechanics import fracture_timing
+from md_table import header
 
 
 def windows(first: float, end: float) -> list[tuple[float, float]]:
@@ -50,9 +51,9 @@ def table(run: Path) -> list[str]:
     gap = fractures["max_gap"]
     lines = [f"**{run}** ({summary['case']}, {summary['status']} at {float(state['t']):.3g} s, "
              f"{int(opened.sum())} opened, {int(never.sum())} never reached by the fluid)", "",
-             "| window [us] | opened | never reached | their distance from the port, median / max [um] | "
-             "the fluid's reach at the window's end [um] | largest gap, never reached / reached, median [um] |",
-             "|---|---|---|---|---|---|"]
+             header("window [us]", "opened", "never reached", "their distance from the port, median / max [um]",
+                    "the fluid's reach at the window's end [um]",
+                    "largest gap, never reached / reached, median [um]")]
     if not opened.any():
         return lines + ["| - | 0 | 0 | - | - | - |"]
     for lo, hi in windows(float(opened_at[opened].min()), float(state["t"])):

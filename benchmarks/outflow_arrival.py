@@ -10,11 +10,11 @@ per directory: the case, breakthrough time, when invading fluid first entered an
 injected by each time as a fraction of the domain tiling's area (Q t / sum V), and the fraction of
 that area filled at breakthrough. Takes a second.
 """
-import argparse
 import json
 from pathlib import Path
 
 import numpy as np
+from md_table import print_run_table
 
 PAPER_BREAKTHROUGH_S = {"A1": 3.0e-2, "A3": 1.5e-3, "B1": 2.5e-2, "B3": 3.5e-4}  # seed 004 Table 4
 
@@ -38,14 +38,10 @@ def row(run: Path) -> str:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("runs", nargs="+", type=Path, help="finished radial run directories")
-    args = parser.parse_args()
-    print("| run | case | status | breakthrough [s] | fluid first in an outflow domain [s] (fraction) "
-          "| injected by then | injected by breakthrough | injected by the paper's t_f | filled at breakthrough |")
-    print("|---|---|---|---|---|---|---|---|---|")
-    for run in args.runs:
-        print(row(run))
+    print_run_table(__doc__.splitlines()[0],
+                    ["run", "case", "status", "breakthrough [s]", "fluid first in an outflow domain [s] (fraction)",
+                     "injected by then", "injected by breakthrough", "injected by the paper's t_f",
+                     "filled at breakthrough"], row)
 
 
 if __name__ == "__main__":

@@ -12,6 +12,7 @@ from hmdem.cases import CASES
 from hmdem.flow.fluids import explicit_critical_step
 from hmdem.flow.simulation import FlowModel
 from hmdem.scenario import build_scenario
+from md_table import header
 
 
 def run(name, scheme="implicit", **changes):
@@ -29,8 +30,7 @@ def main():
     ap.add_argument("--explicit-steps", type=int, default=20000)
     args = ap.parse_args()
     print(f"machine: {platform.node()} {platform.processor() or platform.machine()}, python {platform.python_version()}")
-    print("| case | status | simulated t [s] | steps | solves | wall [s] | CPU [s] |")
-    print("|---|---|---|---|---|---|---|")
+    print(header("case", "status", "simulated t [s]", "steps", "solves", "wall [s]", "CPU [s]"))
     rates = {}
     for name in args.cases:
         state, rec, cpu = run(name)

@@ -12,6 +12,7 @@ from pathlib import Path
 from hmdem.cases import CASES
 from hmdem.flow.simulation import FlowModel
 from hmdem.scenario import build_scenario
+from md_table import header
 
 CACHE = Path(__file__).parent / ".cache"
 
@@ -34,8 +35,8 @@ def main():
     ap.add_argument("--sizes", type=int, nargs="+", default=[1188, 2500, 5000, 10000, 20000])
     ap.add_argument("--steps", type=int, default=60)
     args = ap.parse_args()
-    print("| grains | domains | unknowns | steps | solves | s per step | ms per solve | solve / (N log N) rel. |")
-    print("|---|---|---|---|---|---|---|---|")
+    print(header("grains", "domains", "unknowns", "steps", "solves", "s per step", "ms per solve",
+                 "solve / (N log N) rel."))
     base = None
     for n in args.sizes:
         sc = build_scenario(CASES["vf"], packing_path=packing_file(n))

@@ -21,6 +21,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from hmdem.sweep.__main__ import main as sweep_main  # noqa: E402
 from hmdem.sweep.grid import lenormand_points, parse_axis  # noqa: E402
 from hmdem.sweep.runner import run_point  # noqa: E402
+from md_table import header  # noqa: E402
 
 
 def timed(fn) -> float:
@@ -54,8 +55,7 @@ def main() -> int:
     n = len(points)
     print(f"machine: {platform.node()} ({platform.machine()}), Python {platform.python_version()}; "
           f"{n} runs ({args.log_m} x {args.log_ca})")
-    print("| execution | wall [s] | runs per hour | vs sequential |")
-    print("|---|---|---|---|")
+    print(header("execution", "wall [s]", "runs per hour", "vs sequential"))
     for name, t in (("sequential, no Dask", t_seq), ("Dask, 1 worker", t1), ("Dask, 2 workers", t2)):
         print(f"| {name} | {t:.1f} | {3600 * n / t:.0f} | {t_seq / t:.2f}x |")
     print(f"Dask overhead (1 worker vs sequential): {100 * (t1 - t_seq) / t_seq:+.1f} %; "
