@@ -18,7 +18,7 @@ from pathlib import Path
 from md_table import header
 
 COLUMNS = ("case", "status", "t [s]", "wall [s]", "steps", "DEM cycles/step", "P-V it./step", "halvings",
-           "DEM %", "rewind %", "peak p_in [Pa]", "opened", "open at end", "detached", "D_f", "regime")
+           "DEM %", "rewind %", "memory [MB]", "peak p_in [Pa]", "opened", "open at end", "detached", "D_f", "regime")
 
 
 def percent(fraction: float) -> str:
@@ -30,6 +30,7 @@ def row(summary: dict) -> list:
     return [s["case"], s["status"], f"{s['simulated_time_s']:.4g}", f"{s['wall_time_s']:.0f}", s["steps"],
             f"{s['dem_cycles_per_step']:.0f}", f"{s['mean_pv_iterations']:.2f}", s.get("pv_dt_halvings", "-"),
             percent(s.get("dem_wall_fraction", float("nan"))), percent(s.get("rewind_wall_fraction", float("nan"))),
+            f"{s['peak_memory_mb']:.0f}" if "peak_memory_mb" in s else "-",  # recorded since 2026-12-01
             f"{s['peak_injection_pressure_pa']:.3g}", s["n_opened_contacts"], s.get("n_open_contacts_at_end", "-"),
             s.get("n_detached_contacts", "-"),
             "-" if s["fractal_dimension"] is None else f"{s['fractal_dimension']:.3f}", s["regime"]]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import resource
 from dataclasses import asdict
 from pathlib import Path
 
@@ -34,6 +35,13 @@ def dimension_note(d_f: float | None) -> str:
     """D_f as titles and the closing line give it; none is read on a pattern too small for two
     box sizes, or on none (nan, or null as summary.json writes it)."""
     return f"D_f = {d_f:.3f}" if d_f is not None and np.isfinite(d_f) else "no D_f (pattern too small)"
+
+
+def peak_memory_mb() -> float:
+    """The largest resident memory this process has had so far [MB] (Linux ``ru_maxrss``, in kB):
+    seed 004's Table 4 gives its runs' memory. In a process that ran several runs (a sweep
+    worker, pytest) it covers the earlier ones too."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
 def summarize(sc, model, state, rec, d_f: float | None = None) -> dict:
@@ -83,6 +91,7 @@ def summarize(sc, model, state, rec, d_f: float | None = None) -> dict:
         "run_mass_balance_error": rec.run_mass_balance_error(sc.setup.rate, state.t),
         "simulated_time_s": state.t,
         "wall_time_s": rec.wall_time,
+        "peak_memory_mb": peak_memory_mb(),
         "ca_star": sc.ca_star,
         "rate_m3_per_s_per_m": sc.setup.rate,
         "viscosity_ratio": fluids.viscosity_ratio,

@@ -335,8 +335,15 @@ def test_existing_out_is_refused(tmp_path, capsys):
     assert "--out" in capsys.readouterr().err
 
 
+def resident_memory_mb() -> float:
+    """This process's resident memory now [MB], from /proc (VmRSS, in kB)."""
+    line = next(l for l in Path("/proc/self/status").read_text().splitlines() if l.startswith("VmRSS:"))
+    return int(line.split()[1]) / 1024
+
+
 def test_run_directory_contract(tmp_path):
     out = tmp_path / "chen"
+    resident_before = resident_memory_mb()
     assert main(["linear", "--case", "chen", "--out", str(out), "--quiet"]) == 0
     names = {p.name for p in out.iterdir()}
     assert {"config.toml", "summary.json", "timeseries.csv", "network.npz", "state.npz", "pattern.png",
@@ -347,6 +354,9 @@ def test_run_directory_contract(tmp_path):
                 "wall_time_s"):
         assert key in summary
     assert summary["case"] == "chen" and summary["status"] == "breakthrough"
+    # Table 4's memory column: the process's peak, in MB, is at least what it held before the run
+    # (a figure in kB or bytes would be 1024 times off)
+    assert resident_before <= summary["peak_memory_mb"] < 1024 * resident_before
     config = tomllib.loads((out / "config.toml").read_text())
     assert config["run"]["seed"] == 0 and config["solver"]["dt"] == 0.01 and config["solver"]["inlet"] == "manifold"
     assert "packing" not in config  # a square lattice (App. D.2), no grains' file
