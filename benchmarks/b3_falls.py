@@ -19,9 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-# a sibling script: importable when this file is run as a script (its folder leads sys.path)
-from one_way_variants import falls
+# sibling modules: importable when this file is run as a script (its folder leads sys.path)
 from md_table import print_run_table
+from one_way_variants import falls
 
 
 def dips(t: np.ndarray, p: np.ndarray, fraction: float) -> np.ndarray:
