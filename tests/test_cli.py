@@ -27,6 +27,7 @@ DATA = Path(__file__).resolve().parent.parent / "hmdem" / "data"
     ("hmdem.dem.compaction", ["--overw"], "--overw"),
     ("sph_bridge", ["droplet", "--grav", "0"], "--grav"),
     ("sph_bridge", ["lga", "poiseuille", "--mirr"], "--mirr"),
+    ("hmdem.wet", ["bridge", "--vol", "1e-15"], "--vol"),
 ])
 def test_a_prefix_of_an_option_is_refused(tmp_path, module, args, prefix):
     # a new-user pass: argparse took --sigma for calibrate's --sigma3, silently. The --out exists,

@@ -1,0 +1,84 @@
+"""A YADE scene of 3D spheres for the wet granular runs (seed 002; digest §3.3, §10).
+
+The chapter's grains are rigid Contact Dynamics spheres; here they are soft frictional spheres
+(``FrictMat``, ``Law2_ScGeom_FrictPhys_CundallStrack``), the surrogate of digest §3.3 option b.
+Liquid bridge forces enter as YADE permanent forces, refreshed by the caller every step;
+hmdem keeps its own bridge list (CundallStrack erases an interaction once the spheres part).
+Everything crosses this boundary as numpy arrays.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..yade_env import import_yade
+
+
+class SphereAssembly:
+    """Spheres (centres (n, 3), radii (n,)) in a fresh YADE scene, ready to step."""
+
+    def __init__(self, centres, radii, *, young: float = 1e8, poisson: float = 0.3, friction: float = 0.3,
+                 density: float = 2650.0, damping: float = 0.0, timestep_safety: float = 0.5):
+        import_yade()
+        from yade import O, utils
+        from yade.wrapper import (Bo1_Sphere_Aabb, ForceResetter, FrictMat, Ig2_Sphere_Sphere_ScGeom,
+                                  InsertionSortCollider, InteractionLoop, Ip2_FrictMat_FrictMat_FrictPhys,
+                                  Law2_ScGeom_FrictPhys_CundallStrack, NewtonIntegrator)
+
+        self._O = O
+        O.reset()
+        self.radii = np.asarray(radii, float)
+        material = O.materials.append(FrictMat(young=young, poisson=poisson, density=density,
+                                               frictionAngle=math.atan(friction)))
+        self.ids = [O.bodies.append(utils.sphere(tuple(c), r, material=material))
+                    for c, r in zip(np.asarray(centres, float).tolist(), self.radii.tolist())]
+        O.engines = [ForceResetter(), InsertionSortCollider([Bo1_Sphere_Aabb()]),
+                     InteractionLoop([Ig2_Sphere_Sphere_ScGeom()], [Ip2_FrictMat_FrictMat_FrictPhys()],
+                                     [Law2_ScGeom_FrictPhys_CundallStrack()]),
+                     NewtonIntegrator(damping=damping)]
+        O.dt = timestep_safety * utils.PWaveTimeStep()
+
+    @property
+    def timestep(self) -> float:
+        return float(self._O.dt)
+
+    @property
+    def time(self) -> float:
+        return float(self._O.time)
+
+    def positions(self) -> np.ndarray:
+        """Current centres (n, 3), read in C++ one coordinate at a time."""
+        from yade import _utils
+
+        return np.column_stack([_utils.coordsAndDisplacements(axis)[0] for axis in range(3)])[self.ids]
+
+    def drive(self, index: int, velocity) -> None:
+        """Move sphere ``index`` at a constant ``velocity`` (3,), whatever the forces on it."""
+        from yade.minieigenHP import Vector3
+
+        state = self._O.bodies[self.ids[index]].state
+        state.blockedDOFs = "xyzXYZ"
+        state.vel = Vector3(*map(float, velocity))
+        state.angVel = Vector3(0.0, 0.0, 0.0)
+
+    def hold(self, index: int) -> None:
+        """Fix sphere ``index`` where it is."""
+        self.drive(index, (0.0, 0.0, 0.0))
+
+    def set_external_forces(self, forces) -> None:
+        """Permanent forces (n, 3) [N], kept until replaced (liquid bridges, seed 002 Eq. 4).
+        YADE takes them body by body; plain tuples convert in C++."""
+        set_force = self._O.forces.setPermF
+        for i, f in zip(self.ids, np.asarray(forces, float).reshape(-1, 3).tolist()):
+            set_force(i, tuple(f))
+
+    def total_forces(self) -> np.ndarray:
+        """The force (n, 3) [N] YADE applied to each sphere at the last step: contacts and
+        permanent forces together."""
+        force = self._O.forces.f
+        return np.array([tuple(force(i, True)) for i in self.ids], float).reshape(-1, 3)
+
+    def step(self) -> None:
+        self._O.step()

@@ -1,0 +1,150 @@
+"""Where a pendular assembly's liquid is, and how it moves (seed 002 §3.2; digest §4.4–4.5).
+
+The liquid sits in bridges (one per grain pair that has touched) and in one film per grain. It is
+conserved at all times: a new bridge draws its volume from the two films (§4.4); a ruptured
+bridge gives its volume back to the two films, and each grain passes its share on to its intact
+bridges at once (§4.5). No bridge holds more than V_max; the excess stays in the film it came
+from. Every step is vectorised over bridges and grains (no Python loop).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .bridges import effective_radius, rupture_distance
+
+#: Rules for passing a grain's share of a ruptured bridge on to its intact bridges (digest §4.5):
+#: ``equal`` shares (rule a, Mani et al. 2013) or shares in inverse proportion to the chord L_i
+#: between the two bridges' contact points on that grain (rule c). The chapter's own rule,
+#: (P_f - P_i)/L_i, needs the bridges' Laplace pressures from Eq. 3, which hmdem does not
+#: tabulate yet (docs/roadmap.md).
+REDISTRIBUTION_RULES = ("equal", "distance")
+
+
+@dataclass
+class PendularLiquid:
+    """Bridges on grain pairs and one film per grain [m^3].
+
+    ``pairs`` (m, 2) grain ids of each bridge; ``volume`` (m,) bridge volumes; ``film`` (n_grains,)
+    the liquid held on each grain outside its bridges.
+    """
+
+    pairs: np.ndarray
+    volume: np.ndarray
+    film: np.ndarray
+
+    def __post_init__(self):
+        self.pairs = np.asarray(self.pairs, dtype=np.int64).reshape(-1, 2)
+        self.volume = np.asarray(self.volume, dtype=float).reshape(-1)
+        self.film = np.asarray(self.film, dtype=float).reshape(-1)
+        if len(self.volume) != len(self.pairs):
+            raise ValueError(f"{len(self.pairs)} bridge pairs but {len(self.volume)} bridge volumes")
+
+    @property
+    def total(self) -> float:
+        """All the liquid, in bridges and films [m^3]."""
+        return float(self.volume.sum() + self.film.sum())
+
+    def bridges_per_grain(self) -> np.ndarray:
+        """How many bridges each grain carries."""
+        return np.bincount(self.pairs.ravel(), minlength=len(self.film))
+
+
+def ruptured(liquid: PendularLiquid, gap, radii, contact_angle) -> np.ndarray:
+    """Mask of the bridges whose gap exceeds Eq. 5's rupture distance (criterion d3)."""
+    radius = effective_radius(radii[liquid.pairs[:, 0]], radii[liquid.pairs[:, 1]])
+    return np.asarray(gap, float) > rupture_distance(liquid.volume, radius, contact_angle)
+
+
+def form_bridges(liquid: PendularLiquid, new_pairs, v_max, film_minimum=0.0) -> PendularLiquid:
+    """Add bridges on ``new_pairs`` (k, 2), pairs that touch and have none yet (digest §4.4).
+
+    Each grain gives (V_film - V_min)/n_new to each of its n_new new bridges (the rule of YADE's
+    LiqControl, which the chapter leaves open; docs/decisions.md #99). A bridge takes at most
+    ``v_max`` (scalar or (k,)); what it cannot take stays in the films in proportion to what each
+    offered.
+    """
+    new_pairs = np.asarray(new_pairs, dtype=np.int64).reshape(-1, 2)
+    n = len(liquid.film)
+    keys = np.sort(liquid.pairs, axis=1) @ np.array([n, 1])
+    new_keys = np.sort(new_pairs, axis=1) @ np.array([n, 1])
+    if np.isin(new_keys, keys).any() or len(np.unique(new_keys)) < len(new_keys):
+        raise ValueError("new bridges must be on pairs that have no bridge yet, each once")
+    ends = new_pairs.ravel()
+    n_new = np.bincount(ends, minlength=n)
+    available = np.maximum(liquid.film - film_minimum, 0.0)
+    offered = (available[ends] / n_new[ends]).reshape(-1, 2)
+    wanted = offered.sum(axis=1)
+    taken = np.minimum(wanted, v_max)
+    fraction = np.divide(taken, wanted, out=np.zeros_like(wanted), where=wanted > 0)
+    took = offered * fraction[:, None]
+    film = liquid.film - np.bincount(ends, weights=took.ravel(), minlength=n)
+    return PendularLiquid(np.r_[liquid.pairs, new_pairs], np.r_[liquid.volume, took.sum(axis=1)], film)
+
+
+def _ends(pairs, unit_branch):
+    """Each bridge's two ends: grain id, and the unit vector from that grain towards its partner."""
+    grain = pairs.ravel()
+    direction = np.stack([unit_branch, -unit_branch], axis=1).reshape(len(grain), unit_branch.shape[1])
+    return grain, direction
+
+
+def _same_grain_pairs(grain_a, grain_b):
+    """All index pairs (a, b) with grain_a[a] == grain_b[b], without a Python loop."""
+    order = np.argsort(grain_b, kind="stable")
+    start = np.searchsorted(grain_b[order], grain_a, side="left")
+    count = np.searchsorted(grain_b[order], grain_a, side="right") - start
+    a = np.repeat(np.arange(len(grain_a)), count)
+    offset = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    return a, order[np.repeat(start, count) + offset], count
+
+
+def rupture_bridges(liquid: PendularLiquid, broken, radii, unit_branch, v_max, rule="equal") -> PendularLiquid:
+    """Remove the ``broken`` bridges (mask (m,)) and move their liquid (seed 002 §3.2; digest §4.5).
+
+    A broken bridge's volume goes to its two grains in proportion to their radii (50/50 for the
+    chapter's equal spheres; docs/decisions.md #100). Each grain passes its share on to its intact
+    bridges at once, by ``rule`` (:data:`REDISTRIBUTION_RULES`); a grain with no intact bridge
+    keeps it in its film. A bridge that would exceed ``v_max`` (scalar or (m,)) takes up to
+    V_max and the rest stays in the film of the grain that gave it.
+    ``unit_branch`` (m, d): unit vectors from each bridge's first grain to its second (the caller
+    resolves periodic images); ``radii`` (n_grains,).
+    """
+    if rule not in REDISTRIBUTION_RULES:
+        raise ValueError(f"rule must be one of {REDISTRIBUTION_RULES}, not {rule!r}")
+    broken = np.asarray(broken, bool)
+    unit_branch = np.asarray(unit_branch, float).reshape(len(liquid.pairs), -1)
+    v_max = np.broadcast_to(np.asarray(v_max, float), liquid.volume.shape)
+    radii = np.asarray(radii, float)
+    n = len(liquid.film)
+    keep = ~broken
+
+    pairs = liquid.pairs[broken]
+    ratio = radii[pairs[:, 0]] / (radii[pairs[:, 0]] + radii[pairs[:, 1]])
+    first = liquid.volume[broken] * ratio
+    share = np.c_[first, liquid.volume[broken] - first].ravel()
+    broken_grain, broken_direction = _ends(pairs, unit_branch[broken])
+    intact_grain, intact_direction = _ends(liquid.pairs[keep], unit_branch[keep])
+
+    a, b, count = _same_grain_pairs(broken_grain, intact_grain)
+    if rule == "equal":
+        weight = np.ones(len(a))
+    else:  # chord between the two contact points on the grain's surface
+        chord = radii[broken_grain[a]] * np.linalg.norm(broken_direction[a] - intact_direction[b], axis=1)
+        weight = 1.0 / np.maximum(chord, 1e-12 * radii[broken_grain[a]])
+    weight_sum = np.bincount(a, weights=weight, minlength=len(share))
+    offered = np.bincount(b, weights=share[a] * weight / weight_sum[a], minlength=len(intact_grain))
+    offered = offered.astype(float).reshape(-1, 2)  # bincount of nothing is integer
+
+    volume = liquid.volume[keep]
+    room = np.maximum(v_max[keep] - volume, 0.0)
+    wanted = offered.sum(axis=1)
+    fraction = np.divide(np.minimum(wanted, room), wanted, out=np.ones_like(wanted), where=wanted > room)
+    given = offered * fraction[:, None]
+    excess = (offered - given).ravel()
+    film = (liquid.film
+            + np.bincount(broken_grain[count == 0], weights=share[count == 0], minlength=n)
+            + np.bincount(intact_grain, weights=excess, minlength=n))
+    return PendularLiquid(liquid.pairs[keep], volume + given.sum(axis=1), film)

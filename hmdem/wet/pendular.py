@@ -1,0 +1,68 @@
+"""One pendular liquid step for a set of spheres (seed 002 §3.2; digest §4.7).
+
+Given the spheres' current centres, break the bridges stretched past Eq. 5 (moving their
+liquid, §4.5), form bridges on touching pairs that have none (§4.4), and return each sphere's
+net bridge force (Eq. 4, attractive along the line of centres). numpy only; the caller applies
+the forces to its DEM (``hmdem.dem.spheres``) and resolves periodic images before calling.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .bridges import bridge_force, effective_radius, max_bridge_volume
+from .liquid import PendularLiquid, form_bridges, rupture_bridges, ruptured
+
+
+@dataclass(frozen=True)
+class BridgeModel:
+    """The pendular model's parameters (digest §4): surface tension [N/m], contact angle [rad],
+    Eq. 4's ``force_law`` ("chapter" or "willett"), the switch volume V_c [m^3] and the
+    redistribution ``rule`` (:data:`hmdem.wet.liquid.REDISTRIBUTION_RULES`)."""
+
+    surface_tension: float
+    contact_angle: float
+    force_law: str = "chapter"
+    switch_volume: float = 0.0
+    rule: str = "equal"
+
+
+def branches(centres, pairs):
+    """Centre distances (m,) and unit vectors (m, 3) from each pair's first sphere to its second."""
+    branch = centres[pairs[:, 1]] - centres[pairs[:, 0]]
+    distance = np.linalg.norm(branch, axis=1)
+    return distance, branch / distance[:, None]
+
+
+def pendular_step(liquid: PendularLiquid, centres, radii, model: BridgeModel, touching=None):
+    """Advance the liquid to the spheres' ``centres`` (n, 3) and return (liquid, forces (n, 3),
+    number of ruptures). ``touching`` (k, 2): pairs in contact now (s <= 0); those without a
+    bridge get one. Ruptures come first, so a pair that parts and touches again in one step
+    keeps no stale volume."""
+    radii = np.asarray(radii, float)
+    distance, unit = branches(centres, liquid.pairs)
+    gap = distance - radii[liquid.pairs[:, 0]] - radii[liquid.pairs[:, 1]]
+    broken = ruptured(liquid, gap, radii, model.contact_angle)
+    radius = effective_radius(radii[liquid.pairs[:, 0]], radii[liquid.pairs[:, 1]])
+    if broken.any():
+        liquid = rupture_bridges(liquid, broken, radii, unit, max_bridge_volume(radius), model.rule)
+        gap, unit, radius = gap[~broken], unit[~broken], radius[~broken]
+    if touching is not None and len(touching):
+        n = len(radii)
+        touching = np.sort(np.asarray(touching, np.int64).reshape(-1, 2), axis=1)
+        new = touching[~np.isin(touching @ [n, 1], np.sort(liquid.pairs, axis=1) @ [n, 1])]
+        if len(new):
+            new_radius = effective_radius(radii[new[:, 0]], radii[new[:, 1]])
+            liquid = form_bridges(liquid, new, max_bridge_volume(new_radius))
+            new_distance, new_unit = branches(centres, new)
+            gap = np.r_[gap, new_distance - radii[new[:, 0]] - radii[new[:, 1]]]
+            unit, radius = np.r_[unit, new_unit], np.r_[radius, new_radius]
+    magnitude = bridge_force(gap, liquid.volume, radius, model.surface_tension, model.contact_angle,
+                             model.force_law, model.switch_volume)
+    pull = magnitude[:, None] * unit  # on the first sphere, towards the second
+    forces = np.zeros((len(radii), 3))
+    np.add.at(forces, liquid.pairs[:, 0], pull)
+    np.add.at(forces, liquid.pairs[:, 1], -pull)
+    return liquid, forces, int(broken.sum())
