@@ -49,10 +49,20 @@ class SphereAssembly:
         return float(self._O.time)
 
     def positions(self) -> np.ndarray:
-        """Current centres (n, 3), read in C++ one coordinate at a time."""
+        """Current centres (n, 3), read in C++ one coordinate at a time; the scene holds these
+        spheres only (none erased), so the body ids index YADE's lists."""
         from yade import _utils
 
         return np.column_stack([_utils.coordsAndDisplacements(axis)[0] for axis in range(3)])[self.ids]
+
+    def velocities(self) -> np.ndarray:
+        """Current velocities (n, 3) [m/s]."""
+        bodies = self._O.bodies
+        return np.array([tuple(bodies[i].state.vel) for i in self.ids], float).reshape(-1, 3)
+
+    def masses(self) -> np.ndarray:
+        """Sphere masses (n,) [kg], as YADE holds them."""
+        return np.array([self._O.bodies[i].state.mass for i in self.ids])
 
     def drive(self, index: int, velocity) -> None:
         """Move sphere ``index`` at a constant ``velocity`` (3,), whatever the forces on it."""

@@ -50,7 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--force-law", choices=("chapter", "willett"), default="chapter",
                    help="Eq. 4's linear coefficient: 1 as printed (chapter, default) or 2.1 (Willett 2000, "
                         "YADE's Willett_analytic); docs/decisions.md #98")
-    b.add_argument("--resolution", type=int_at_least(10), default=400,
+    b.add_argument("--resolution", type=int_at_least(10, maximum=1_000_000), default=400,
                    help="DEM steps for the pull to cover s_c (default %(default)s)")
     b.add_argument("--out", type=Path, default=None, help="run directory (default runs/bridge-<time>-<pid>)")
     return parser
@@ -62,13 +62,16 @@ def run_bridge(args, argv) -> int:
     if volume > max_bridge_volume(radius) * (1 + 1e-12):
         raise InputError(f"--volume: must be at most V_max = {V_MAX_OVER_R3} R^3 = {max_bridge_volume(radius):.4g} m^3 "
                          f"for --radius {radius:g}, got {volume:g}")
+    theta = np.radians(args.theta)
+    s_c = float(rupture_distance(volume, radius, theta))
+    if s_c / args.resolution < 1e6 * np.spacing(2 * radius):  # the pull's steps must move the sphere
+        raise InputError(f"--volume: V = {volume:g} m^3 gives a rupture distance of {s_c:.3g} m, too small to "
+                         f"pull over {args.resolution} steps at R = {radius:g} m; at least {1e-9 * radius**3:.3g} m^3")
     out = new_run_directory(args.out, "bridge")
     from ..dem.spheres import SphereAssembly
 
     started = time.perf_counter()
-    theta = np.radians(args.theta)
     model = BridgeModel(args.gamma, theta, args.force_law)
-    s_c = float(rupture_distance(volume, radius, theta))
     radii = np.full(2, radius)
     scene = SphereAssembly([[0.0, 0.0, 0.0], [2 * radius, 0.0, 0.0]], radii)
     travel = s_c / args.resolution  # per DEM step
@@ -84,12 +87,13 @@ def run_bridge(args, argv) -> int:
         touching = None
         if broken and rupture_step is None:
             rupture_gap, rupture_step = gap, len(rows)
+        t = scene.time  # the step from t applies the force of the gap at t
         scene.set_external_forces(forces)
         scene.step()
         held = scene.total_forces()[0, 0]  # the bridge pulls the held sphere towards +x
         v = float(liquid.volume.sum())
         expected = float(bridge_force(gap, v, radius, args.gamma, theta, args.force_law)) if len(liquid.pairs) else 0.0
-        rows.append((scene.time, gap, held, expected, v, float(liquid.film.sum())))
+        rows.append((t, gap, held, expected, v, float(liquid.film.sum())))
         if len(rows) > 3 * args.resolution:  # Eq. 5's s_c is the pull's own target: a bug if passed 3 times
             raise RuntimeError(f"no rupture by gap {gap:.4g} m against s_c = {s_c:.4g} m")
     data = np.array(rows)
@@ -127,8 +131,11 @@ def plot_pull(path: Path, data: np.ndarray, s_c: float, args) -> None:
     from ..plots import plt  # Agg backend, Debian's Axes3D warning silenced
 
     fig, ax = plt.subplots(figsize=(5.5, 4))
-    ax.plot(data[:, 1] / args.radius, data[:, 2] * 1e6, lw=2.5, color="0.7", label="YADE (applied)")
-    ax.plot(data[:, 1] / args.radius, data[:, 3] * 1e6, "k--", lw=1, label=f"Eq. 4 ({args.force_law})")
+    gap = data[:, 1] / args.radius
+    cut = np.argmax(data[:, 4] == 0)  # the first row after the rupture: the force drops there, not gradually
+    gap, force, eq4 = (np.insert(a, cut, np.nan) for a in (gap, data[:, 2] * 1e6, data[:, 3] * 1e6))
+    ax.plot(gap, force, lw=2.5, color="0.7", label="YADE (applied)")
+    ax.plot(gap, eq4, "k--", lw=1, label=f"Eq. 4 ({args.force_law})")
     ax.axvline(s_c / args.radius, color="tab:red", lw=1, label="Eq. 5: $s_c$")
     ax.set_xlabel("gap s / R")
     ax.set_ylabel("bridge force [µN]")

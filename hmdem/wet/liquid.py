@@ -64,12 +64,13 @@ def form_bridges(liquid: PendularLiquid, new_pairs, v_max, film_minimum=0.0) -> 
     Each grain gives (V_film - V_min)/n_new to each of its n_new new bridges (the rule of YADE's
     LiqControl, which the chapter leaves open; docs/decisions.md #99). A bridge takes at most
     ``v_max`` (scalar or (k,)); what it cannot take stays in the films in proportion to what each
-    offered.
+    offered. A pair whose films are dry gets no bridge.
     """
     new_pairs = np.asarray(new_pairs, dtype=np.int64).reshape(-1, 2)
     n = len(liquid.film)
-    keys = np.sort(liquid.pairs, axis=1) @ np.array([n, 1])
-    new_keys = np.sort(new_pairs, axis=1) @ np.array([n, 1])
+    if np.any(new_pairs[:, 0] == new_pairs[:, 1]):
+        raise ValueError("a bridge joins two different grains")
+    keys, new_keys = pair_keys(liquid.pairs, n), pair_keys(new_pairs, n)
     if np.isin(new_keys, keys).any() or len(np.unique(new_keys)) < len(new_keys):
         raise ValueError("new bridges must be on pairs that have no bridge yet, each once")
     ends = new_pairs.ravel()
@@ -81,13 +82,19 @@ def form_bridges(liquid: PendularLiquid, new_pairs, v_max, film_minimum=0.0) -> 
     fraction = np.divide(taken, wanted, out=np.zeros_like(wanted), where=wanted > 0)
     took = offered * fraction[:, None]
     film = liquid.film - np.bincount(ends, weights=took.ravel(), minlength=n)
-    return PendularLiquid(np.r_[liquid.pairs, new_pairs], np.r_[liquid.volume, took.sum(axis=1)], film)
+    wet = took.sum(axis=1) > 0  # no liquid, no bridge: the pair may get one when it touches again
+    return PendularLiquid(np.r_[liquid.pairs, new_pairs[wet]], np.r_[liquid.volume, took.sum(axis=1)[wet]], film)
+
+
+def pair_keys(pairs, n_grains):
+    """One integer per unordered grain pair, for set operations on pairs."""
+    return np.sort(np.asarray(pairs, np.int64).reshape(-1, 2), axis=1) @ np.array([n_grains, 1])
 
 
 def _ends(pairs, unit_branch):
     """Each bridge's two ends: grain id, and the unit vector from that grain towards its partner."""
     grain = pairs.ravel()
-    direction = np.stack([unit_branch, -unit_branch], axis=1).reshape(len(grain), unit_branch.shape[1])
+    direction = np.stack([unit_branch, -unit_branch], axis=1).reshape(len(grain), unit_branch.shape[-1])
     return grain, direction
 
 
@@ -114,8 +121,11 @@ def rupture_bridges(liquid: PendularLiquid, broken, radii, unit_branch, v_max, r
     """
     if rule not in REDISTRIBUTION_RULES:
         raise ValueError(f"rule must be one of {REDISTRIBUTION_RULES}, not {rule!r}")
-    broken = np.asarray(broken, bool)
-    unit_branch = np.asarray(unit_branch, float).reshape(len(liquid.pairs), -1)
+    broken = np.asarray(broken)
+    if broken.dtype != bool or broken.shape != liquid.volume.shape:
+        raise ValueError(f"broken must be a boolean mask of the {len(liquid.volume)} bridges")
+    unit_branch = np.asarray(unit_branch, float)
+    unit_branch = unit_branch.reshape(len(liquid.pairs), unit_branch.shape[-1])
     v_max = np.broadcast_to(np.asarray(v_max, float), liquid.volume.shape)
     radii = np.asarray(radii, float)
     n = len(liquid.film)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .bridges import bridge_force, effective_radius, max_bridge_volume
-from .liquid import PendularLiquid, form_bridges, rupture_bridges, ruptured
+from .liquid import PendularLiquid, form_bridges, pair_keys, rupture_bridges, ruptured
 
 
 @dataclass(frozen=True)
@@ -29,20 +29,27 @@ class BridgeModel:
     rule: str = "equal"
 
 
-def branches(centres, pairs):
-    """Centre distances (m,) and unit vectors (m, 3) from each pair's first sphere to its second."""
+def branches(centres, pairs, period=None):
+    """Centre distances (m,) and unit vectors (m, d) from each pair's first sphere to its second.
+    ``period`` (d,): the box lengths of periodic axes (inf where not periodic); a pair is taken
+    at its nearest image."""
     branch = centres[pairs[:, 1]] - centres[pairs[:, 0]]
+    if period is not None:
+        period = np.asarray(period, float)
+        periodic = np.isfinite(period)
+        branch[:, periodic] -= period[periodic] * np.round(branch[:, periodic] / period[periodic])
     distance = np.linalg.norm(branch, axis=1)
     return distance, branch / distance[:, None]
 
 
-def pendular_step(liquid: PendularLiquid, centres, radii, model: BridgeModel, touching=None):
-    """Advance the liquid to the spheres' ``centres`` (n, 3) and return (liquid, forces (n, 3),
+def pendular_step(liquid: PendularLiquid, centres, radii, model: BridgeModel, touching=None, period=None):
+    """Advance the liquid to the spheres' ``centres`` (n, d) and return (liquid, forces (n, d),
     number of ruptures). ``touching`` (k, 2): pairs in contact now (s <= 0); those without a
-    bridge get one. Ruptures come first, so a pair that parts and touches again in one step
-    keeps no stale volume."""
+    bridge get one, if their films hold liquid. ``period``: as for :func:`branches`. Ruptures
+    come first, so the liquid a rupture frees is in the films when new bridges draw on them."""
     radii = np.asarray(radii, float)
-    distance, unit = branches(centres, liquid.pairs)
+    centres = np.asarray(centres, float)
+    distance, unit = branches(centres, liquid.pairs, period)
     gap = distance - radii[liquid.pairs[:, 0]] - radii[liquid.pairs[:, 1]]
     broken = ruptured(liquid, gap, radii, model.contact_angle)
     radius = effective_radius(radii[liquid.pairs[:, 0]], radii[liquid.pairs[:, 1]])
@@ -51,18 +58,20 @@ def pendular_step(liquid: PendularLiquid, centres, radii, model: BridgeModel, to
         gap, unit, radius = gap[~broken], unit[~broken], radius[~broken]
     if touching is not None and len(touching):
         n = len(radii)
-        touching = np.sort(np.asarray(touching, np.int64).reshape(-1, 2), axis=1)
-        new = touching[~np.isin(touching @ [n, 1], np.sort(liquid.pairs, axis=1) @ [n, 1])]
+        touching = np.unique(np.sort(np.asarray(touching, np.int64).reshape(-1, 2), axis=1), axis=0)
+        new = touching[~np.isin(pair_keys(touching, n), pair_keys(liquid.pairs, n))]
         if len(new):
-            new_radius = effective_radius(radii[new[:, 0]], radii[new[:, 1]])
-            liquid = form_bridges(liquid, new, max_bridge_volume(new_radius))
-            new_distance, new_unit = branches(centres, new)
+            formed = len(liquid.pairs)
+            liquid = form_bridges(liquid, new, max_bridge_volume(effective_radius(radii[new[:, 0]], radii[new[:, 1]])))
+            new = liquid.pairs[formed:]  # the wet ones
+            new_distance, new_unit = branches(centres, new, period)
             gap = np.r_[gap, new_distance - radii[new[:, 0]] - radii[new[:, 1]]]
-            unit, radius = np.r_[unit, new_unit], np.r_[radius, new_radius]
+            unit = np.r_[unit, new_unit]
+            radius = np.r_[radius, effective_radius(radii[new[:, 0]], radii[new[:, 1]])]
     magnitude = bridge_force(gap, liquid.volume, radius, model.surface_tension, model.contact_angle,
                              model.force_law, model.switch_volume)
     pull = magnitude[:, None] * unit  # on the first sphere, towards the second
-    forces = np.zeros((len(radii), 3))
+    forces = np.zeros((len(radii), centres.shape[1]))
     np.add.at(forces, liquid.pairs[:, 0], pull)
     np.add.at(forces, liquid.pairs[:, 1], -pull)
     return liquid, forces, int(broken.sum())
