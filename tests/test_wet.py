@@ -1,6 +1,6 @@
 """Pendular liquid bridges (seed 002 §3.2): Eq. 4 force, Eq. 5 rupture and the liquid's moves.
 
-Expected numbers are the digest's claims A1–A7, A8's conservation for the rules built, and B5
+Expected numbers are the digest's claims A1–A8 and B5
 (shared/digests/seed002.md §4.2, §4.3, §8) with their tolerances, YADE's own
 ``Law2_ScGeom_ViscElCapPhys_Basic`` as an independent oracle, and energy conservation of a sphere
 that a bridge pulls in through YADE.
@@ -196,20 +196,25 @@ def _random_assembly(seed, n=60):
     return rng, liquid, radii, unit, v_max
 
 
-@pytest.mark.parametrize("rule", ["equal", "distance"])
+@pytest.mark.parametrize("rule", ["equal", "pressure", "distance", "mani"])
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_rupture_conserves_liquid_and_the_cap(rule, seed):
-    # A8: the ruptured volume is conserved (1e-12 relative), into intact bridges or, past V_max
-    # or with no intact bridge, into the films; no bridge above V_max, and the films only gain
+    # A8: the ruptured volume is conserved (1e-12 relative), into intact bridges or, past V_max,
+    # with no intact bridge or none below the film pressure, into the films; no bridge above
+    # V_max, and the films only gain. Pressures: P_f = 1, P_i in [-5, 1.5] (some draw nothing)
     rng, liquid, radii, unit, v_max = _random_assembly(seed)
     broken = rng.random(len(liquid.pairs)) < 0.3
-    after = rupture_bridges(liquid, broken, radii, unit, v_max, rule)
+    pressures = dict(bridge_pressure=rng.uniform(-5, 1.5, len(liquid.pairs)), film_pressure=np.ones(len(radii)))
+    after = rupture_bridges(liquid, broken, radii, unit, v_max, rule, **pressures)
     assert after.total == pytest.approx(liquid.total, rel=1e-12)
     assert np.all(after.volume <= v_max[~broken] * (1 + 1e-12))
     assert np.all(after.volume >= liquid.volume[~broken])
     assert np.all(after.film >= liquid.film)
-    # every grain that kept a bridge passed its share on, up to the cap
-    lost_all = np.setdiff1d(liquid.pairs[broken].ravel(), after.pairs.ravel())
+    # every grain that kept a bridge that draws passed its share on, up to the cap
+    drawing = np.ones(len(after.pairs), bool)
+    if rule in ("pressure", "mani"):
+        drawing = pressures["bridge_pressure"][~broken] < 1
+    lost_all = np.setdiff1d(liquid.pairs[broken].ravel(), after.pairs[drawing].ravel())
     gained = after.film - liquid.film
     capped = after.volume >= v_max[~broken] * (1 - 1e-12)
     full_grains = np.unique(after.pairs[capped].ravel())

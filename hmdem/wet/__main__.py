@@ -2,6 +2,7 @@
 
     python -m hmdem.wet bridge [--radius R] [--volume V] [--gamma G] [--theta DEG]
                                [--force-law {chapter,willett}] [--resolution N] [--out DIR]
+    python -m hmdem.wet table [--theta DEG] [--out DIR]
 
 bridge: two equal spheres, touching; a bridge of volume V forms from their films (§4.4) and the
 second sphere is pulled away at a constant speed, s_c/N per DEM step, until the bridge ruptures
@@ -9,6 +10,10 @@ second sphere is pulled away at a constant speed, s_c/N per DEM step, until the 
 is logged against Eq. 4 at every step. Writes a run directory atomically: config.toml,
 summary.json, timeseries.csv and force.png. Bad input is one line on stderr, exit status 2,
 nothing written.
+
+table: the Young-Laplace bridges (Eq. 3) between equal spheres at one contact angle, as suction,
+force and neck against volume and gap (units R = gamma = 1) in bridge_table.npz; the rupture
+distance against Eq. 5 in summary.json; Eq. 4's two laws against the table in eq4.png.
 """
 
 from __future__ import annotations
@@ -53,6 +58,10 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--resolution", type=int_at_least(10, maximum=1_000_000), default=400,
                    help="DEM steps for the pull to cover s_c (default %(default)s)")
     b.add_argument("--out", type=Path, default=None, help="run directory (default runs/bridge-<time>-<pid>)")
+    t = sub.add_parser("table", help="the Young-Laplace bridge table (Eq. 3) at one contact angle, against Eqs. 4-5")
+    t.add_argument("--theta", type=number_in("an angle in [0, 60] degrees", lambda v: 0 <= v <= 60), default=5.0,
+                   help="contact angle [deg] (default %(default)g)")
+    t.add_argument("--out", type=Path, default=None, help="run directory (default runs/table-<time>-<pid>)")
     return parser
 
 
@@ -126,6 +135,59 @@ def run_bridge(args, argv) -> int:
     return 0
 
 
+def run_table(args, argv) -> int:
+    out = new_run_directory(args.out, "table")
+    from .young_laplace import bridge_table
+
+    started = time.perf_counter()
+    theta = np.radians(args.theta)
+    table = bridge_table(float(theta))
+    checks = [0.001, 0.01, 0.03, V_MAX_OVER_R3]
+    rupture = {f"{v:g}": {"young_laplace": float(table.rupture_distance(v)),
+                          "eq5": float(rupture_distance(v, 1.0, theta))} for v in checks}
+    summary = {"contact_angle_deg": args.theta, "rupture_distance_over_r": rupture,
+               "eq5_over_young_laplace_max": max(r["eq5"] / r["young_laplace"] for r in rupture.values()),
+               "eq5_over_young_laplace_min": min(r["eq5"] / r["young_laplace"] for r in rupture.values()),
+               "wall_time_s": time.perf_counter() - started}
+    config = {"run": run_record(PROG, argv, command="table"), "table": {"contact_angle_deg": args.theta}}
+    with atomic_run_directory(out) as tmp:
+        write_toml(tmp / "config.toml", config)
+        write_json(tmp / "summary.json", summary)
+        np.savez_compressed(tmp / "bridge_table.npz", volume_over_r3=table.volumes, gap_over_r=table.gaps,
+                            suction=table.suction_table, force=table.force_table, neck=table.neck_table,
+                            least_volume_over_r3=table.least_volume, contact_angle_deg=args.theta)
+        plot_table(tmp / "eq4.png", table, checks[1:], args.theta)
+    print(f"Young-Laplace table at {args.theta:g} deg; Eq. 5 over its rupture distance: "
+          f"{summary['eq5_over_young_laplace_min']:.3f}-{summary['eq5_over_young_laplace_max']:.3f}; "
+          f"run directory: {out}")
+    return 0
+
+
+def plot_table(path: Path, table, volumes, theta_deg: float) -> None:
+    """Eq. 4's two laws against the Young-Laplace force, F / (gamma R) against s / R."""
+    from ..plots import plt  # Agg backend, Debian's Axes3D warning silenced
+
+    theta = np.radians(theta_deg)
+    fig, ax = plt.subplots(figsize=(6, 4.2))
+    for v, colour in zip(volumes, ("tab:blue", "tab:orange", "tab:green")):
+        s_yl = np.linspace(0.0, float(table.rupture_distance(v)), 200)
+        ax.plot(s_yl, table.force(v, s_yl), color=colour, lw=2.2, label=f"Young–Laplace, V = {v:g} R³")
+        s = np.linspace(0.0, float(rupture_distance(v, 1.0, theta)), 200)  # Eq. 4 up to Eq. 5's rupture
+        first = v == volumes[0]
+        ax.plot(s, bridge_force(s, v, 1.0, 1.0, theta), "--", color=colour, lw=1,
+                label="Eq. 4, chapter" if first else None)
+        ax.plot(s, bridge_force(s, v, 1.0, 1.0, theta, "willett"), ":", color=colour, lw=1.3,
+                label="Eq. 4, Willett" if first else None)
+        ax.axvline(table.rupture_distance(v), color=colour, lw=0.6)
+    ax.set_xlabel("gap s / R (thin lines: Young–Laplace rupture)")
+    ax.set_ylabel("bridge force F / (γR)")
+    ax.set_title(f"θ = {theta_deg:g}°")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def plot_pull(path: Path, data: np.ndarray, s_c: float, args) -> None:
     """Force on the held sphere against the gap, with Eq. 4 and Eq. 5's rupture distance."""
     from ..plots import plt  # Agg backend, Debian's Axes3D warning silenced
@@ -150,7 +212,8 @@ def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     args = parser.parse_args(argv)
-    return dispatch(PROG, parser, args, {"bridge": lambda a: run_bridge(a, argv)})
+    return dispatch(PROG, parser, args, {"bridge": lambda a: run_bridge(a, argv),
+                                         "table": lambda a: run_table(a, argv)})
 
 
 if __name__ == "__main__":

@@ -16,11 +16,12 @@ import numpy as np
 from .bridges import effective_radius, rupture_distance
 
 #: Rules for passing a grain's share of a ruptured bridge on to its intact bridges (digest §4.5):
-#: ``equal`` shares (rule a, Mani et al. 2013) or shares in inverse proportion to the chord L_i
-#: between the two bridges' contact points on that grain (rule c). The chapter's own rule,
-#: (P_f - P_i)/L_i, needs the bridges' Laplace pressures from Eq. 3, which hmdem does not
-#: tabulate yet (docs/roadmap.md).
-REDISTRIBUTION_RULES = ("equal", "distance")
+#: ``equal`` shares (rule a, Mani et al. 2013); in proportion to P_f - P_i (``pressure``, rule b);
+#: in inverse proportion to the chord L_i between the two bridges' contact points on that grain
+#: (``distance``, rule c); or the chapter's own (P_f - P_i)/L_i (``mani``, Mani et al. 2012).
+#: P_i is a bridge's Laplace pressure (negative when concave), P_f the film's.
+REDISTRIBUTION_RULES = ("equal", "pressure", "distance", "mani")
+PRESSURE_RULES = ("pressure", "mani")
 
 
 @dataclass
@@ -108,7 +109,8 @@ def _same_grain_pairs(grain_a, grain_b):
     return a, order[np.repeat(start, count) + offset], count
 
 
-def rupture_bridges(liquid: PendularLiquid, broken, radii, unit_branch, v_max, rule="equal") -> PendularLiquid:
+def rupture_bridges(liquid: PendularLiquid, broken, radii, unit_branch, v_max, rule="equal",
+                    bridge_pressure=None, film_pressure=None) -> PendularLiquid:
     """Remove the ``broken`` bridges (mask (m,)) and move their liquid (seed 002 §3.2; digest §4.5).
 
     A broken bridge's volume goes to its two grains in proportion to their radii (50/50 for the
@@ -117,10 +119,15 @@ def rupture_bridges(liquid: PendularLiquid, broken, radii, unit_branch, v_max, r
     keeps it in its film. A bridge that would exceed ``v_max`` (scalar or (m,)) takes up to
     V_max and the rest stays in the film of the grain that gave it.
     ``unit_branch`` (m, d): unit vectors from each bridge's first grain to its second (the caller
-    resolves periodic images); ``radii`` (n_grains,).
+    resolves periodic images); ``radii`` (n_grains,). The ``pressure`` and ``mani`` rules need
+    ``bridge_pressure`` (m,) [Pa], each bridge's P_i, and ``film_pressure`` (n_grains,) [Pa],
+    P_f = +gamma/R as the chapter prints it (digest §9 item 15); a bridge at or above its
+    grain's film pressure draws nothing, and a grain whose bridges all are keeps its share.
     """
     if rule not in REDISTRIBUTION_RULES:
         raise ValueError(f"rule must be one of {REDISTRIBUTION_RULES}, not {rule!r}")
+    if rule in PRESSURE_RULES and (bridge_pressure is None or film_pressure is None):
+        raise ValueError(f"rule {rule!r} needs the bridges' and the films' pressures")
     broken = np.asarray(broken)
     if broken.dtype != bool or broken.shape != liquid.volume.shape:
         raise ValueError(f"broken must be a boolean mask of the {len(liquid.volume)} bridges")
@@ -138,14 +145,18 @@ def rupture_bridges(liquid: PendularLiquid, broken, radii, unit_branch, v_max, r
     broken_grain, broken_direction = _ends(pairs, unit_branch[broken])
     intact_grain, intact_direction = _ends(liquid.pairs[keep], unit_branch[keep])
 
-    a, b, count = _same_grain_pairs(broken_grain, intact_grain)
-    if rule == "equal":
-        weight = np.ones(len(a))
-    else:  # chord between the two contact points on the grain's surface
+    a, b, _ = _same_grain_pairs(broken_grain, intact_grain)
+    weight = np.ones(len(a))
+    if rule in ("distance", "mani"):  # the chord between the two contact points on the grain's surface
         chord = radii[broken_grain[a]] * np.linalg.norm(broken_direction[a] - intact_direction[b], axis=1)
-        weight = 1.0 / np.maximum(chord, 1e-12 * radii[broken_grain[a]])
+        weight /= np.maximum(chord, 1e-12 * radii[broken_grain[a]])
+    if rule in PRESSURE_RULES:  # P_f - P_i of the intact bridge, on the giving grain
+        intact_pressure = np.repeat(np.asarray(bridge_pressure, float)[keep], 2)
+        weight *= np.maximum(np.asarray(film_pressure, float)[broken_grain[a]] - intact_pressure[b], 0.0)
     weight_sum = np.bincount(a, weights=weight, minlength=len(share))
-    offered = np.bincount(b, weights=share[a] * weight / weight_sum[a], minlength=len(intact_grain))
+    kept = weight_sum == 0  # no intact bridge on that grain, or none that draws
+    fraction = np.divide(weight, weight_sum[a], out=np.zeros_like(weight), where=weight_sum[a] > 0)
+    offered = np.bincount(b, weights=share[a] * fraction, minlength=len(intact_grain))
     offered = offered.astype(float).reshape(-1, 2)  # bincount of nothing is integer
 
     volume = liquid.volume[keep]
@@ -155,6 +166,6 @@ def rupture_bridges(liquid: PendularLiquid, broken, radii, unit_branch, v_max, r
     given = offered * fraction[:, None]
     excess = (offered - given).ravel()
     film = (liquid.film
-            + np.bincount(broken_grain[count == 0], weights=share[count == 0], minlength=n)
+            + np.bincount(broken_grain[kept], weights=share[kept], minlength=n)
             + np.bincount(intact_grain, weights=excess, minlength=n))
     return PendularLiquid(liquid.pairs[keep], volume + given.sum(axis=1), film)

@@ -13,7 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .bridges import bridge_force, effective_radius, max_bridge_volume
-from .liquid import PendularLiquid, form_bridges, pair_keys, rupture_bridges, ruptured
+from .liquid import PRESSURE_RULES, PendularLiquid, form_bridges, pair_keys, rupture_bridges, ruptured
+from .young_laplace import bridge_table
 
 
 @dataclass(frozen=True)
@@ -42,6 +43,16 @@ def branches(centres, pairs, period=None):
     return distance, branch / distance[:, None]
 
 
+def bridge_laplace_pressure(volume, gap, radius, model: BridgeModel):
+    """Each bridge's Laplace pressure P = P_liquid - P_gas [Pa] (negative when concave, digest §1)
+    from the Young–Laplace table at the model's contact angle (seed 002 Eq. 3), with R the
+    pair's effective radius (the table is for equal spheres; docs/decisions.md #102). Volumes
+    are held to the table's range, 1e-5 to 0.1 R^3."""
+    table = bridge_table(model.contact_angle)
+    scaled = np.clip(volume / radius**3, table.volumes[0], table.volumes[-1])
+    return -model.surface_tension / radius * table.suction(scaled, gap / radius)
+
+
 def pendular_step(liquid: PendularLiquid, centres, radii, model: BridgeModel, touching=None, period=None):
     """Advance the liquid to the spheres' ``centres`` (n, d) and return (liquid, forces (n, d),
     number of ruptures). ``touching`` (k, 2): pairs in contact now (s <= 0); those without a
@@ -54,7 +65,11 @@ def pendular_step(liquid: PendularLiquid, centres, radii, model: BridgeModel, to
     broken = ruptured(liquid, gap, radii, model.contact_angle)
     radius = effective_radius(radii[liquid.pairs[:, 0]], radii[liquid.pairs[:, 1]])
     if broken.any():
-        liquid = rupture_bridges(liquid, broken, radii, unit, max_bridge_volume(radius), model.rule)
+        pressures = {}
+        if model.rule in PRESSURE_RULES:
+            pressures = dict(bridge_pressure=bridge_laplace_pressure(liquid.volume, gap, radius, model),
+                             film_pressure=model.surface_tension / radii)  # P_f = +gamma/R (§9 item 15)
+        liquid = rupture_bridges(liquid, broken, radii, unit, max_bridge_volume(radius), model.rule, **pressures)
         gap, unit, radius = gap[~broken], unit[~broken], radius[~broken]
     if touching is not None and len(touching):
         n = len(radii)
