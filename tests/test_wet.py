@@ -375,3 +375,25 @@ def test_a_bridge_pulls_a_free_sphere_in_with_its_work():
     work = quad(lambda s: bridge_force(s, volume, r, gamma, 0.0), 0.5 * (before + gap), s0, epsrel=1e-12)[0]
     assert 0.5 * mass * scene.velocities()[1, 0] ** 2 == pytest.approx(work, rel=1e-4)
     assert len(liquid.pairs) == 1 and liquid.volume[0] == volume
+
+
+def test_film_flow_conserves_liquid_and_runs_down_the_pressure():
+    # A9: with a symmetric omega the rates sum to zero (1e-12 absolute, R = gamma = 1, omega = 0.01,
+    # the chapter's value); A10: between two bridges on one grain, liquid goes from the higher P
+    # (less negative) to the lower, at (R/gamma) omega (P_j - P_i)
+    from hmdem.wet.liquid import film_flow_rates
+
+    liquid, unit = _line_of_grains()  # bridges 0-1, 1-2, 2-3, 1-4
+    pressure = np.array([-3.0, -1.0, -2.0, -5.0])
+    rates = film_flow_rates(liquid, pressure, np.ones(5), 1.0, 0.01)
+    # grain 1 joins bridges 0, 1, 3; grain 2 joins 1 and 2
+    assert rates == pytest.approx(0.01 * np.array([(-1 + 3) + (-5 + 3), (-3 + 1) + (-5 + 1) + (-2 + 1),
+                                                   (-1 + 2), (-3 + 5) + (-1 + 5)]), rel=1e-12)
+    assert abs(rates.sum()) < 1e-12
+    pair = PendularLiquid([[0, 1], [1, 2]], [0.01, 0.02], np.zeros(3))
+    two = film_flow_rates(pair, [-4.0, -2.0], np.ones(3), 1.0, 0.01)
+    assert two[0] > 0 > two[1] and two[0] == pytest.approx(0.02, rel=1e-12)
+    _, liquid, radii, _, _ = _random_assembly(3)
+    rng = np.random.default_rng(3)
+    rates = film_flow_rates(liquid, rng.uniform(-10, 0, len(liquid.pairs)), radii, 1.0, 0.01)
+    assert abs(rates.sum()) < 1e-12

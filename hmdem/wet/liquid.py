@@ -169,3 +169,26 @@ def rupture_bridges(liquid: PendularLiquid, broken, radii, unit_branch, v_max, r
             + np.bincount(broken_grain[kept], weights=share[kept], minlength=n)
             + np.bincount(intact_grain, weights=excess, minlength=n))
     return PendularLiquid(liquid.pairs[keep], volume + given.sum(axis=1), film)
+
+
+def film_flow_rates(liquid: PendularLiquid, bridge_pressure, radii, surface_tension, conductance) -> np.ndarray:
+    """dV/dt [m^3/s] of each bridge from film flow between bridges that share a grain (digest §4.6):
+    seed 002 Eq. 8's form with bridges as the clusters (§5.6),
+
+        dV_b/dt = (R / gamma) sum_b' omega (P_b' - P_b),
+
+    over the bridges b' on a grain of b, R that grain's radius, P the bridges' Laplace pressures
+    [Pa] (m,), omega = ``conductance`` [m^3/s] (the chapter's "dimensionless" omega carries volume
+    per time, §9 item 10). Liquid goes from the higher (less negative) pressure to the lower one,
+    and the rates sum to zero (A9, A10). The chapter gives no pendular flux law (§4.6); this is
+    the digest's proposal (docs/decisions.md #104).
+    """
+    pressure = np.asarray(bridge_pressure, float)
+    grain = liquid.pairs.ravel()
+    bridge = np.repeat(np.arange(len(liquid.pairs)), 2)
+    a, b, _ = _same_grain_pairs(grain, grain)
+    other = a != b
+    a, b = a[other], b[other]
+    scale = np.asarray(radii, float)[grain[a]] / surface_tension * conductance
+    flow = scale * (pressure[bridge[b]] - pressure[bridge[a]])
+    return np.bincount(bridge[a], weights=flow, minlength=len(liquid.pairs)).astype(float)
