@@ -59,8 +59,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="DEM steps for the pull to cover s_c (default %(default)s)")
     b.add_argument("--out", type=Path, default=None, help="run directory (default runs/bridge-<time>-<pid>)")
     t = sub.add_parser("table", help="the Young-Laplace bridge table (Eq. 3) at one contact angle, against Eqs. 4-5")
-    t.add_argument("--theta", type=number_in("an angle in [0, 60] degrees", lambda v: 0 <= v <= 60), default=5.0,
-                   help="contact angle [deg] (default %(default)g)")
+    t.add_argument("--theta", type=number_in("an angle in [0, 5] degrees", lambda v: 0 <= v <= 5), default=5.0,
+                   help="contact angle [deg], up to the chapter's 5 (default %(default)g; decisions #102)")
     t.add_argument("--out", type=Path, default=None, help="run directory (default runs/table-<time>-<pid>)")
     return parser
 

@@ -122,7 +122,8 @@ def rupture_bridges(liquid: PendularLiquid, broken, radii, unit_branch, v_max, r
     resolves periodic images); ``radii`` (n_grains,). The ``pressure`` and ``mani`` rules need
     ``bridge_pressure`` (m,) [Pa], each bridge's P_i, and ``film_pressure`` (n_grains,) [Pa],
     P_f = +gamma/R as the chapter prints it (digest §9 item 15); a bridge at or above its
-    grain's film pressure draws nothing, and a grain whose bridges all are keeps its share.
+    grain's film pressure, or with a NaN pressure, draws nothing, and a grain whose bridges all
+    are keeps its share.
     """
     if rule not in REDISTRIBUTION_RULES:
         raise ValueError(f"rule must be one of {REDISTRIBUTION_RULES}, not {rule!r}")
@@ -152,7 +153,8 @@ def rupture_bridges(liquid: PendularLiquid, broken, radii, unit_branch, v_max, r
         weight /= np.maximum(chord, 1e-12 * radii[broken_grain[a]])
     if rule in PRESSURE_RULES:  # P_f - P_i of the intact bridge, on the giving grain
         intact_pressure = np.repeat(np.asarray(bridge_pressure, float)[keep], 2)
-        weight *= np.maximum(np.asarray(film_pressure, float)[broken_grain[a]] - intact_pressure[b], 0.0)
+        drive = np.asarray(film_pressure, float)[broken_grain[a]] - intact_pressure[b]
+        weight *= np.where(np.isfinite(drive), np.maximum(drive, 0.0), 0.0)  # an unknown P_i draws nothing
     weight_sum = np.bincount(a, weights=weight, minlength=len(share))
     kept = weight_sum == 0  # no intact bridge on that grain, or none that draws
     fraction = np.divide(weight, weight_sum[a], out=np.zeros_like(weight), where=weight_sum[a] > 0)

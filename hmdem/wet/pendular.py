@@ -47,7 +47,7 @@ def bridge_laplace_pressure(volume, gap, radius, model: BridgeModel):
     """Each bridge's Laplace pressure P = P_liquid - P_gas [Pa] (negative when concave, digest §1)
     from the Young–Laplace table at the model's contact angle (seed 002 Eq. 3), with R the
     pair's effective radius (the table is for equal spheres; docs/decisions.md #102). Volumes
-    are held to the table's range, 1e-5 to 0.1 R^3."""
+    are held to the table's range, 5e-4 to 0.1 R^3; NaN past Eq. 5's rupture."""
     table = bridge_table(model.contact_angle)
     scaled = np.clip(volume / radius**3, table.volumes[0], table.volumes[-1])
     return -model.surface_tension / radius * table.suction(scaled, gap / radius)

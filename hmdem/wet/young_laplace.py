@@ -35,6 +35,8 @@ from numba import njit
 from scipy.integrate import solve_ivp
 from scipy.interpolate import PchipInterpolator, RegularGridInterpolator
 
+from .bridges import rupture_distance
+
 MAX_ARC = 20.0  # longest meridian followed [R]
 
 
@@ -102,6 +104,8 @@ def _contact_state(neck, suction, contact_angle, turn, max_x):
     falls to the axis or passes x = ``max_x`` first (the gap would exceed 2 max_x - 2)."""
     x, y, phi, v = 0.0, neck, 0.0, 0.0
     g = y - math.cos(phi + contact_angle)
+    if g >= 0.0:  # a neck this wide meets no sphere from inside: no bridge
+        return math.nan, math.nan, math.nan, math.nan
     arc = 0.0
     while arc < MAX_ARC and x < max_x:
         h = min(20.0 * turn * y, turn / max(abs(suction + math.cos(phi) / y), 1e-12))
@@ -138,7 +142,7 @@ def meridians(necks, suctions, contact_angle: float, turn: float = 2e-3, max_gap
     """Many bridges at once (numba, RK4): arrays (gap, volume, force, filling angle), NaN where
     the meridian does not meet the sphere with 0 < beta < pi/2, or only past ``max_gap``.
     ``turn``: the largest turn of the meridian per step [rad]; 2e-3 agrees with :func:`profile`
-    to ~1e-10."""
+    to ~1e-8."""
     necks, suctions = np.broadcast_arrays(np.asarray(necks, float), np.asarray(suctions, float))
     state = np.empty((necks.size, 4))
     _meridians(necks.ravel(), suctions.ravel(), float(contact_angle), float(turn), 1.0 + 0.5 * max_gap, state)
@@ -155,7 +159,12 @@ class BridgeTable:
 
     Built from ``n_necks`` neck radii (geometric, 0.02 to 0.75 R) times ``n_suctions`` values of
     S y0 in (-1, 40], read onto ``n_gaps`` gaps in [0, ``max_gap``] (quadratically spaced) and
-    ``n_volumes`` volumes in [1e-5, 0.1] R^3 (geometric). Values outside the table or past rupture are NaN.
+    ``n_volumes`` volumes in [5e-4, 0.1] R^3 (geometric); smaller bridges need necks below the
+    grid's. Made for contact angles up to 5 degrees, the chapter's: at 10 degrees the grid misses
+    the least volume at s = 0.3 R by half (0.0217 against 0.0145 R^3 solved neck by neck), as the
+    first-contact bridges of narrow necks end steeply in the suction. Volumes outside the table, and gaps past
+    Eq. 5's rupture distance, read NaN; gaps between the table's reach and Eq. 5's read the last
+    bridge the table has.
     """
 
     def __init__(self, contact_angle: float, n_necks: int = 160, n_suctions: int = 400, n_gaps: int = 161,
@@ -166,7 +175,7 @@ class BridgeTable:
         suctions = ratio[None, :] / necks[:, None]
         gap, volume, force, _ = meridians(necks[:, None], suctions, contact_angle, max_gap=max_gap)
         self.gaps = max_gap * np.linspace(0.0, 1.0, n_gaps) ** 2  # small bridges part at small gaps
-        self.volumes = np.geomspace(1e-5, 0.1, n_volumes)
+        self.volumes = np.geomspace(5e-4, 0.1, n_volumes)
         # each neck's bridges read at the table's gaps (the gap falls as the suction grows)
         on_gaps = np.full((3, n_necks, n_gaps), np.nan)
         for j in range(n_necks):
@@ -192,13 +201,14 @@ class BridgeTable:
             if ok.sum() < 3:
                 continue
             first = np.flatnonzero(ok)[np.argmin(v[ok])]
+            at_edge = first == np.flatnonzero(ok)[0]  # the least volume needs a narrower neck than the grid's
             branch = np.arange(first, n_necks)
             branch = branch[np.isfinite(v[branch])]
             vb = v[branch]
             if np.any(np.diff(vb) <= 0):  # the branch must be monotone to be inverted
                 branch = branch[: np.argmax(np.diff(vb) <= 0) + 1]
                 vb = v[branch]
-            self.least_volume[k] = vb[0]
+            self.least_volume[k] = np.nan if at_edge else vb[0]
             inside = (self.volumes >= vb[0]) & (self.volumes <= vb[-1])
             if len(branch) < 2:
                 continue
@@ -224,13 +234,15 @@ class BridgeTable:
         # the widest gap both neighbouring rows reach: the interpolation reads both
         upper = np.clip(np.searchsorted(self.volumes, volume), 1, len(self.volumes) - 1)
         widest = np.fmin(self.widest_gap[upper - 1], self.widest_gap[upper])
+        parted = gap > rupture_distance(volume, 1.0, self.contact_angle) * (1 + 1e-9)  # Eq. 5
         gap = np.clip(gap, 0.0, widest)
-        return interpolator(np.stack([np.log(volume), gap], axis=-1)).reshape(volume.shape)[()]
+        values = interpolator(np.stack([np.log(volume), gap], axis=-1)).reshape(volume.shape)
+        return np.where(parted, np.nan, values)[()]
 
     def suction(self, volume, gap):
         """S = Delta P R / gamma (> 0: the liquid below the gas pressure). An overlap reads as s = 0,
-        and a gap past the table's reach for that volume as the widest gap it reaches; volumes
-        outside [1e-5, 0.1] R^3 give NaN."""
+        and a gap past the table's reach for that volume, up to Eq. 5's rupture, as the widest gap
+        it reaches; volumes outside [5e-4, 0.1] R^3 and gaps past Eq. 5 give NaN."""
         return self._at(self._suction, volume, gap)
 
     def force(self, volume, gap):
@@ -247,7 +259,14 @@ class BridgeTable:
         return np.interp(volume, self.least_volume[ok], self.gaps[ok], left=np.nan, right=np.nan)
 
 
+MAX_TABLE_ANGLE = math.radians(5.0)  # BridgeTable's grid resolves rupture up to here (decisions #102)
+
+
 @functools.lru_cache(maxsize=8)
 def bridge_table(contact_angle: float) -> BridgeTable:
-    """The :class:`BridgeTable` at this contact angle [rad], built once per process (~5 s)."""
+    """The :class:`BridgeTable` at this contact angle [rad], at most 5 degrees, built once per
+    process (~5 s)."""
+    if not 0.0 <= contact_angle <= MAX_TABLE_ANGLE * (1 + 1e-12):
+        raise ValueError(f"the Young-Laplace table is made for contact angles in [0, 5] degrees, "
+                         f"not {math.degrees(contact_angle):g}")
     return BridgeTable(contact_angle)
