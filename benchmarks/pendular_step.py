@@ -45,7 +45,8 @@ def main() -> None:
     started = time.perf_counter()
     bridge_table(theta)
     print(f"Young-Laplace table at 5 degrees: {time.perf_counter() - started:.1f} s to build\n")
-    print(header("spheres", "bridges", *(f"{rule} [ms]" for rule in REDISTRIBUTION_RULES), "mani per bridge [us]", "ruptures"))
+    print(header("spheres", "bridges", *(f"{rule} [ms]" for rule in REDISTRIBUTION_RULES),
+                 "mani per bridge [us]", "ruptures"))
     for n in args.sizes:
         centres, pairs = assembly(n)
         distance, _ = branches(centres, pairs)

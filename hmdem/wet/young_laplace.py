@@ -162,9 +162,9 @@ class BridgeTable:
     ``n_volumes`` volumes in [5e-4, 0.1] R^3 (geometric); smaller bridges need necks below the
     grid's. Made for contact angles up to 5 degrees, the chapter's: at 10 degrees the grid misses
     the least volume at s = 0.3 R by half (0.0217 against 0.0145 R^3 solved neck by neck), as the
-    first-contact bridges of narrow necks end steeply in the suction. Volumes outside the table, and gaps past
-    Eq. 5's rupture distance, read NaN; gaps between the table's reach and Eq. 5's read the last
-    bridge the table has.
+    first-contact bridges of narrow necks end steeply in the suction. Volumes outside the table,
+    and gaps past Eq. 5's rupture distance, read NaN; gaps between the table's reach and Eq. 5's
+    read the last bridge the table has.
     """
 
     def __init__(self, contact_angle: float, n_necks: int = 160, n_suctions: int = 400, n_gaps: int = 161,
