@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from hmdem.wet.bridges import bridge_force, effective_radius, max_bridge_volume, rupture_distance
-from hmdem.wet.liquid import PendularLiquid, form_bridges, rupture_bridges, ruptured
+from hmdem.wet.liquid import PendularLiquid, bridge_radii, form_bridges, rupture_bridges, ruptured
 from hmdem.yade_env import import_yade
 
 THETA_5 = np.radians(5.0)
@@ -242,7 +242,7 @@ def test_formation_refuses_a_pair_that_has_a_bridge():
 def test_ruptured_mask_follows_eq_5():
     liquid = PendularLiquid([[0, 1], [1, 2]], [0.03, 0.03], np.zeros(3))
     s_c = rupture_distance(0.03, 1.0, 0.0)
-    assert ruptured(liquid, [s_c * (1 - 1e-9), s_c * (1 + 1e-9)], np.ones(3), 0.0).tolist() == [False, True]
+    assert ruptured(liquid, [s_c * (1 - 1e-9), s_c * (1 + 1e-9)], bridge_radii(liquid.pairs, np.ones(3)), 0.0).tolist() == [False, True]
 
 
 @pytest.mark.yade

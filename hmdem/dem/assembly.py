@@ -17,6 +17,15 @@ from ..yade_env import import_yade
 from .discs import add_discs, disc_engines
 
 
+def body_centres(ids, axes: int = 3) -> np.ndarray:
+    """The first ``axes`` coordinates (n, axes) of the bodies ``ids``, read in C++ one coordinate
+    of every body at a time (YADE's ``coordsAndDisplacements``); the ids index its lists, so the
+    scene must have no erased body before them."""
+    from yade import _utils
+
+    return np.column_stack([_utils.coordsAndDisplacements(axis)[0] for axis in range(axes)])[ids]
+
+
 def run_cycles(O, cycles: int) -> None:
     """``cycles`` DEM steps. ``O.run(n, True)`` costs ~40 ms of polling per call in YADE 2023.02a
     whatever n; ``O.step()`` is synchronous and costs ~3 us, so short runs stay cheap."""
@@ -116,10 +125,7 @@ class DiscAssembly:
         return self._coordinates(2)
 
     def _coordinates(self, axes: int) -> np.ndarray:
-        """The first ``axes`` coordinates of the discs' centres (n, axes), read in C++."""
-        from yade import _utils
-
-        return np.column_stack([_utils.coordsAndDisplacements(axis)[0] for axis in range(axes)])[self.ids]
+        return body_centres(self.ids, axes)
 
     def velocities(self) -> np.ndarray:
         bodies = self._O.bodies

@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from ..yade_env import import_yade
+from .assembly import body_centres
 
 
 class SphereAssembly:
@@ -49,11 +50,8 @@ class SphereAssembly:
         return float(self._O.time)
 
     def positions(self) -> np.ndarray:
-        """Current centres (n, 3), read in C++ one coordinate at a time; the scene holds these
-        spheres only (none erased), so the body ids index YADE's lists."""
-        from yade import _utils
-
-        return np.column_stack([_utils.coordsAndDisplacements(axis)[0] for axis in range(3)])[self.ids]
+        """Current centres (n, 3), read in C++ (the scene holds these spheres only, none erased)."""
+        return body_centres(self.ids)
 
     def velocities(self) -> np.ndarray:
         """Current velocities (n, 3) [m/s]."""

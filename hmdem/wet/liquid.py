@@ -53,9 +53,15 @@ class PendularLiquid:
         return np.bincount(self.pairs.ravel(), minlength=len(self.film))
 
 
-def ruptured(liquid: PendularLiquid, gap, radii, contact_angle) -> np.ndarray:
-    """Mask of the bridges whose gap exceeds Eq. 5's rupture distance (criterion d3)."""
-    radius = effective_radius(radii[liquid.pairs[:, 0]], radii[liquid.pairs[:, 1]])
+def bridge_radii(pairs, radii) -> np.ndarray:
+    """Each bridge's effective radius 2 R1 R2 / (R1 + R2), from its grains' ``radii``."""
+    pairs = np.asarray(pairs, np.int64).reshape(-1, 2)
+    return effective_radius(radii[pairs[:, 0]], radii[pairs[:, 1]])
+
+
+def ruptured(liquid: PendularLiquid, gap, radius, contact_angle) -> np.ndarray:
+    """Mask of the bridges whose gap exceeds Eq. 5's rupture distance (criterion d3);
+    ``radius``: each bridge's effective radius (:func:`bridge_radii`)."""
     return np.asarray(gap, float) > rupture_distance(liquid.volume, radius, contact_angle)
 
 
@@ -106,7 +112,7 @@ def _same_grain_pairs(grain_a, grain_b):
     count = np.searchsorted(grain_b[order], grain_a, side="right") - start
     a = np.repeat(np.arange(len(grain_a)), count)
     offset = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-    return a, order[np.repeat(start, count) + offset], count
+    return a, order[np.repeat(start, count) + offset]
 
 
 def rupture_bridges(liquid: PendularLiquid, broken, radii, unit_branch, v_max, rule="equal",
@@ -146,7 +152,7 @@ def rupture_bridges(liquid: PendularLiquid, broken, radii, unit_branch, v_max, r
     broken_grain, broken_direction = _ends(pairs, unit_branch[broken])
     intact_grain, intact_direction = _ends(liquid.pairs[keep], unit_branch[keep])
 
-    a, b, _ = _same_grain_pairs(broken_grain, intact_grain)
+    a, b = _same_grain_pairs(broken_grain, intact_grain)
     weight = np.ones(len(a))
     if rule in ("distance", "mani"):  # the chord between the two contact points on the grain's surface
         chord = radii[broken_grain[a]] * np.linalg.norm(broken_direction[a] - intact_direction[b], axis=1)
@@ -188,7 +194,7 @@ def film_flow_rates(liquid: PendularLiquid, bridge_pressure, radii, surface_tens
     pressure = np.asarray(bridge_pressure, float)
     grain = liquid.pairs.ravel()
     bridge = np.repeat(np.arange(len(liquid.pairs)), 2)
-    a, b, _ = _same_grain_pairs(grain, grain)
+    a, b = _same_grain_pairs(grain, grain)
     other = a != b
     a, b = a[other], b[other]
     scale = np.asarray(radii, float)[grain[a]] / surface_tension * conductance

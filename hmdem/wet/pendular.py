@@ -3,7 +3,8 @@
 Given the spheres' current centres, break the bridges stretched past Eq. 5 (moving their
 liquid, §4.5), form bridges on touching pairs that have none (§4.4), and return each sphere's
 net bridge force (Eq. 4, attractive along the line of centres). numpy only; the caller applies
-the forces to its DEM (``hmdem.dem.spheres``) and resolves periodic images before calling.
+the forces to its DEM (``hmdem.dem.spheres``). Pairs across a periodic boundary are taken at
+their nearest image (``period``).
 """
 
 from __future__ import annotations
@@ -12,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bridges import bridge_force, effective_radius, max_bridge_volume
-from .liquid import PRESSURE_RULES, PendularLiquid, form_bridges, pair_keys, rupture_bridges, ruptured
+from .bridges import bridge_force, max_bridge_volume
+from .liquid import PRESSURE_RULES, PendularLiquid, bridge_radii, form_bridges, pair_keys, rupture_bridges, ruptured
 from .young_laplace import bridge_table
 
 
@@ -62,8 +63,8 @@ def pendular_step(liquid: PendularLiquid, centres, radii, model: BridgeModel, to
     centres = np.asarray(centres, float)
     distance, unit = branches(centres, liquid.pairs, period)
     gap = distance - radii[liquid.pairs[:, 0]] - radii[liquid.pairs[:, 1]]
-    broken = ruptured(liquid, gap, radii, model.contact_angle)
-    radius = effective_radius(radii[liquid.pairs[:, 0]], radii[liquid.pairs[:, 1]])
+    radius = bridge_radii(liquid.pairs, radii)
+    broken = ruptured(liquid, gap, radius, model.contact_angle)
     if broken.any():
         pressures = {}
         if model.rule in PRESSURE_RULES:
@@ -77,12 +78,14 @@ def pendular_step(liquid: PendularLiquid, centres, radii, model: BridgeModel, to
         new = touching[~np.isin(pair_keys(touching, n), pair_keys(liquid.pairs, n))]
         if len(new):
             formed = len(liquid.pairs)
-            liquid = form_bridges(liquid, new, max_bridge_volume(effective_radius(radii[new[:, 0]], radii[new[:, 1]])))
-            new = liquid.pairs[formed:]  # the wet ones
+            new_radius = bridge_radii(new, radii)
+            liquid = form_bridges(liquid, new, max_bridge_volume(new_radius))
+            wet = np.isin(pair_keys(new, n), pair_keys(liquid.pairs[formed:], n))  # dry pairs get none
+            new, new_radius = new[wet], new_radius[wet]
             new_distance, new_unit = branches(centres, new, period)
             gap = np.r_[gap, new_distance - radii[new[:, 0]] - radii[new[:, 1]]]
             unit = np.r_[unit, new_unit]
-            radius = np.r_[radius, effective_radius(radii[new[:, 0]], radii[new[:, 1]])]
+            radius = np.r_[radius, new_radius]
     magnitude = bridge_force(gap, liquid.volume, radius, model.surface_tension, model.contact_angle,
                              model.force_law, model.switch_volume)
     pull = magnitude[:, None] * unit  # on the first sphere, towards the second
