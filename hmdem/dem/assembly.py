@@ -26,6 +26,26 @@ def body_centres(ids, axes: int = 3) -> np.ndarray:
     return np.column_stack([_utils.coordsAndDisplacements(axis)[0] for axis in range(axes)])[ids]
 
 
+def set_permanent_forces(O, ids, forces) -> None:
+    """YADE permanent forces (n, 3) [N] on the bodies ``ids``, kept until replaced. YADE takes
+    them body by body; plain tuples convert in C++ (faster than building Vector3s)."""
+    set_force = O.forces.setPermF
+    for i, f in zip(ids, np.asarray(forces, float).reshape(-1, 3).tolist()):
+        set_force(i, tuple(f))
+
+
+class SceneClock:
+    """The DEM step and time of a YADE scene held as ``self._O`` (the wet runs' scenes)."""
+
+    @property
+    def timestep(self) -> float:
+        return float(self._O.dt)
+
+    @property
+    def time(self) -> float:
+        return float(self._O.time)
+
+
 def run_cycles(O, cycles: int) -> None:
     """``cycles`` DEM steps. ``O.run(n, True)`` costs ~40 ms of polling per call in YADE 2023.02a
     whatever n; ``O.step()`` is synchronous and costs ~3 us, so short runs stay cheap."""

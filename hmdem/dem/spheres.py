@@ -14,10 +14,10 @@ import math
 import numpy as np
 
 from ..yade_env import import_yade
-from .assembly import body_centres
+from .assembly import SceneClock, body_centres, set_permanent_forces
 
 
-class SphereAssembly:
+class SphereAssembly(SceneClock):
     """Spheres (centres (n, 3), radii (n,)) in a fresh YADE scene, ready to step."""
 
     def __init__(self, centres, radii, *, young: float = 1e8, poisson: float = 0.3, friction: float = 0.3,
@@ -40,14 +40,6 @@ class SphereAssembly:
                                      [Law2_ScGeom_FrictPhys_CundallStrack()]),
                      NewtonIntegrator(damping=damping)]
         O.dt = timestep_safety * utils.PWaveTimeStep()
-
-    @property
-    def timestep(self) -> float:
-        return float(self._O.dt)
-
-    @property
-    def time(self) -> float:
-        return float(self._O.time)
 
     def positions(self) -> np.ndarray:
         """Current centres (n, 3), read in C++ (the scene holds these spheres only, none erased)."""
@@ -76,11 +68,8 @@ class SphereAssembly:
         self.drive(index, (0.0, 0.0, 0.0))
 
     def set_external_forces(self, forces) -> None:
-        """Permanent forces (n, 3) [N], kept until replaced (liquid bridges, seed 002 Eq. 4).
-        YADE takes them body by body; plain tuples convert in C++."""
-        set_force = self._O.forces.setPermF
-        for i, f in zip(self.ids, np.asarray(forces, float).reshape(-1, 3).tolist()):
-            set_force(i, tuple(f))
+        """Permanent forces (n, 3) [N], kept until replaced (liquid bridges, seed 002 Eq. 4)."""
+        set_permanent_forces(self._O, self.ids, forces)
 
     def total_forces(self) -> np.ndarray:
         """The force (n, 3) [N] YADE applied to each sphere at the last step: contacts and

@@ -3,6 +3,8 @@
     python -m hmdem.wet bridge [--radius R] [--volume V] [--gamma G] [--theta DEG]
                                [--force-law {chapter,willett}] [--resolution N] [--out DIR]
     python -m hmdem.wet table [--theta DEG] [--out DIR]
+    python -m hmdem.wet shear [--amplitude A] [--sigma0 S] [--cohesion-number ETA] [--strain G] [--n N]
+                              [--pressure P] [--theta DEG] [--redistribution RULE] [--seed K] [--out DIR] ...
 
 bridge: two equal spheres, touching; a bridge of volume V forms from their films (§4.4) and the
 second sphere is pulled away at a constant speed, s_c/N per DEM step, until the bridge ruptures
@@ -14,6 +16,8 @@ nothing written.
 table: the Young-Laplace bridges (Eq. 3) between equal spheres at one contact angle, as suction,
 force and neck against volume and gap (units R = gamma = 1) in bridge_table.npz; the rupture
 distance against Eq. 5 in summary.json; Eq. 4's two laws against the table in eq4.png.
+
+shear: liquid migration in a periodic plane-shear cell (§6.2): see hmdem.wet.shear_output.
 """
 
 from __future__ import annotations
@@ -29,8 +33,9 @@ from ..cli import (InputError, OneLineParser, dispatch, int_at_least, new_run_di
                    run_record)
 from ..rundir import atomic_run_directory, write_json, write_rows, write_toml
 from .bridges import V_MAX_OVER_R3, bridge_force, max_bridge_volume, rupture_distance
-from .liquid import PendularLiquid
+from .liquid import REDISTRIBUTION_RULES, PendularLiquid
 from .pendular import BridgeModel, pendular_step
+from .shear_output import run_shear_command
 
 PROG = "python -m hmdem.wet"
 TIMESERIES = ("t", "gap", "force", "force_eq4", "volume", "film_volume")
@@ -62,7 +67,42 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--theta", type=number_in("an angle in [0, 5] degrees", lambda v: 0 <= v <= 5), default=5.0,
                    help="contact angle [deg], up to the chapter's 5 (default %(default)g; decisions #102)")
     t.add_argument("--out", type=Path, default=None, help="run directory (default runs/table-<time>-<pid>)")
+    add_shear_parser(sub)
     return parser
+
+
+def add_shear_parser(sub) -> None:
+    s = sub.add_parser("shear", help="liquid migration in a sheared periodic packing (plane shear, Sec. 6.2)")
+    s.add_argument("--amplitude", type=number_in(f"a volume in (0, {V_MAX_OVER_R3}] R^3",
+                                                 lambda v: 0 < v <= V_MAX_OVER_R3), default=0.01,
+                   help="A: the largest initial bridge volume [R^3] (default %(default)g)")
+    s.add_argument("--sigma0", type=positive_number, default=4.0,
+                   help="sigma_0: the initial profile's width [R] (default %(default)g)")
+    s.add_argument("--cohesion-number", type=number_in("a number >= 0", lambda v: v >= 0), default=0.0,
+                   help="eta = 2 pi R gamma cos(theta) / (P R^2); 0 (default) leaves the forces off")
+    s.add_argument("--strain", type=number_in("a strain in (0, 1000]", lambda v: 0 < v <= 1000), default=2.0,
+                   help="total shear strain (default %(default)g)")
+    s.add_argument("--n", type=int_at_least(64, maximum=200_000), default=800, help="grains (default %(default)s)")
+    s.add_argument("--radius", type=positive_number, default=1e-3, help="mean grain radius R [m] (default %(default)g)")
+    s.add_argument("--pressure", type=positive_number, default=1e4, help="plate pressure P [Pa] (default %(default)g)")
+    s.add_argument("--stiffness", type=number_in("a ratio in [100, 1e7]", lambda v: 100 <= v <= 1e7), default=2e3,
+                   help="Young's modulus over P, sets the overlaps (default %(default)g)")
+    s.add_argument("--friction", type=number_in("a coefficient in [0, 10]", lambda v: 0 <= v <= 10), default=0.3,
+                   help="grain friction coefficient (default %(default)g, the chapter's, Sec. 7.3)")
+    s.add_argument("--inertial-number", type=number_in("a number in (0, 0.5]", lambda v: 0 < v <= 0.5),
+                   default=0.01, help="I = shear rate x 2R sqrt(density/P) (default %(default)g)")
+    s.add_argument("--theta", type=number_in("an angle in [0, 90) degrees", lambda v: 0 <= v < 90), default=5.0,
+                   help="contact angle [deg] (default %(default)g)")
+    s.add_argument("--force-law", choices=("chapter", "willett"), default="chapter", help="Eq. 4's coefficient")
+    s.add_argument("--redistribution", choices=REDISTRIBUTION_RULES, default="equal",
+                   help="rupture rule (default equal, rule a as in Mani et al. 2013)")
+    s.add_argument("--liquid-every", type=int_at_least(1, maximum=10_000), default=1,
+                   help="DEM steps per liquid step (default %(default)s)")
+    s.add_argument("--outputs", type=int_at_least(3, maximum=10_000), default=20,
+                   help="profiles and ParaView frames over the strain (default %(default)s)")
+    s.add_argument("--seed", type=int_at_least(0), default=0, help="packing seed (default %(default)s)")
+    s.add_argument("--out", type=Path, default=None, help="run directory (default runs/shear-<time>-<pid>)")
+    s.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
 def run_bridge(args, argv) -> int:
@@ -121,7 +161,7 @@ def run_bridge(args, argv) -> int:
         "dem_timestep_s": scene.timestep,
         "wall_time_s": time.perf_counter() - started,
     }
-    config = {"run": run_record(PROG, argv, command="bridge"),
+    config = {"run": run_record(PROG, argv),
               "bridge": {"radius_m": radius, "volume_m3": volume, "surface_tension_n_per_m": args.gamma,
                          "contact_angle_deg": args.theta, "force_law": args.force_law,
                          "resolution": args.resolution, "pull_speed_m_per_s": travel / scene.timestep}}
@@ -149,7 +189,7 @@ def run_table(args, argv) -> int:
                "eq5_over_young_laplace_max": max(r["eq5"] / r["young_laplace"] for r in rupture.values()),
                "eq5_over_young_laplace_min": min(r["eq5"] / r["young_laplace"] for r in rupture.values()),
                "wall_time_s": time.perf_counter() - started}
-    config = {"run": run_record(PROG, argv, command="table"), "table": {"contact_angle_deg": args.theta}}
+    config = {"run": run_record(PROG, argv), "table": {"contact_angle_deg": args.theta}}
     with atomic_run_directory(out) as tmp:
         write_toml(tmp / "config.toml", config)
         write_json(tmp / "summary.json", summary)
@@ -208,12 +248,14 @@ def plot_pull(path: Path, data: np.ndarray, s_c: float, args) -> None:
     plt.close(fig)
 
 
-def main(argv=None) -> int:
+def main(argv=None, launcher: str | None = None) -> int:
+    """The command line; ``launcher`` names a YADE launcher calling it (config.toml's [launcher])."""
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     args = parser.parse_args(argv)
     return dispatch(PROG, parser, args, {"bridge": lambda a: run_bridge(a, argv),
-                                         "table": lambda a: run_table(a, argv)})
+                                         "table": lambda a: run_table(a, argv),
+                                         "shear": lambda a: run_shear_command(a, argv, PROG, launcher)})
 
 
 if __name__ == "__main__":
