@@ -310,6 +310,24 @@ def test_pendular_step_breaks_forms_and_balances_forces():
     assert forces.sum(axis=0) == pytest.approx(np.zeros(3), abs=1e-12)
 
 
+@pytest.mark.parametrize("rule", ["pressure", "mani"])
+def test_pressure_rules_share_alike_without_surface_tension(rule):
+    # a review found that at gamma = 0 (eta^coh = 0, forces off) every P_f - P_i was 0, so the
+    # pressure rules kept ruptured liquid in the films; the weights scale with gamma, which cancels
+    from hmdem.wet.pendular import BridgeModel, pendular_step
+
+    s_c = rupture_distance(0.01, 1.0, np.radians(5.0))
+    # chain 0-1-2: bridge 0-1 stretched past rupture, bridge 1-2 touching and intact
+    centres = np.array([[0.0, 0, 0], [2.0 + 1.01 * s_c, 0, 0], [4.0 + 1.01 * s_c, 0, 0]])
+    liquid = PendularLiquid([[0, 1], [1, 2]], [0.01, 0.01], np.zeros(3))
+    runs = [pendular_step(liquid, centres, np.ones(3), BridgeModel(gamma, np.radians(5.0), rule=rule))[0]
+            for gamma in (0.0, 0.0728, 1.0)]
+    for after in runs:
+        # grain 1's half of the broken bridge goes to its intact bridge; grain 0 has none, keeps its half
+        assert after.volume == pytest.approx([0.015], rel=1e-12)
+        assert after.film == pytest.approx([0.005, 0.0, 0.0], abs=1e-15)
+
+
 def test_pendular_step_caps_new_bridges_at_their_own_v_max():
     # V_max = 0.057 R^3 of the pair's effective radius (digest §4.4); the rest stays in the films
     from hmdem.wet.pendular import BridgeModel, pendular_step

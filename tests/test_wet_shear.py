@@ -54,6 +54,38 @@ def test_gaussian_fit_recovers_a_sampled_gaussian():
     assert fit.residual < 1e-6
 
 
+class _Column:
+    """A stand-in shear cell: grains on a vertical line, each touching the next."""
+
+    radius = 1.0
+    plate_gap = 20.0
+
+    def __init__(self):
+        self.radii = np.ones(19)
+
+    def centres(self):
+        return np.c_[np.zeros(19), np.zeros(19), np.arange(1.0, 20.0)]
+
+    def touching(self, centres):
+        pairs = np.c_[np.arange(18), np.arange(1, 19)]
+        return pairs, np.zeros(18)
+
+
+def test_initial_bridges_only_near_the_centre():
+    # V_b(z) = A exp(-(z - z_wall/2)^2 / sigma0^2) at each bridge's mid-height, and none where
+    # that is below INITIAL_CUT * A (a review: Eq. 4 gives tiny bridges the full contact force)
+    from hmdem.wet.shear import INITIAL_CUT, ShearSettings, initial_liquid
+
+    liquid = initial_liquid(_Column(), ShearSettings(0.01, 2.0, 0.0, 1.0))
+    mid = 0.5 * (np.arange(1.0, 19.0) + np.arange(2.0, 20.0))
+    expected = 0.01 * np.exp(-((mid - 10.0) / 2.0) ** 2)
+    keep = expected >= INITIAL_CUT * 0.01
+    assert 0 < keep.sum() < len(keep)
+    assert liquid.pairs[:, 0].tolist() == np.flatnonzero(keep).tolist()
+    assert liquid.volume == pytest.approx(expected[keep], rel=1e-14)
+    assert liquid.film.tolist() == [0.0] * 19
+
+
 def test_diffusion_fit_recovers_the_slope():
     strain = np.linspace(0.0, 3.0, 7)
     d, sigma0_2 = diffusion_fit(strain, 16.0 + 4 * 0.37 * strain)
@@ -66,6 +98,8 @@ def test_diffusion_fit_recovers_the_slope():
     ("--theta", "95", "--theta"),
     ("--strain", "-1", "--strain"),
     ("--n", "10", "--n"),
+    ("--sigma0", "1e-6", "--sigma0"),
+    ("--radius", "1e300", "--radius"),
 ])
 def test_shear_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys, flag, value, words):
     from hmdem.wet.__main__ import main
@@ -115,7 +149,6 @@ def test_shear_run_conserves_liquid_and_keeps_bridges_in_bounds(shear_runs):
         assert summary["status"] == "finished"
         assert summary["liquid_volume_defect"] < 1e-12
         assert summary["max_bridge_volume_over_vmax"] <= 1 + 1e-12
-        assert summary["max_gap_over_sc"] <= 1.0
         assert summary["ruptures"] > 0
         with open(out / "timeseries.csv") as f:
             rows = list(csv.DictReader(f))
@@ -141,6 +174,42 @@ def test_shear_spreads_small_bridges_faster_and_keeps_a_gaussian(shear_runs):
         assert profiles["sigma2_over_r2"][-1] > profiles["sigma2_over_r2"][0]  # it spreads
         d[amplitude] = summary["D_over_R2"]
     assert d[0.001] > d[0.03] > 0
+
+
+@pytest.mark.yade
+def test_shear_cell_finds_yades_contacts_across_the_periodic_sides(tmp_path):
+    # touching() (a periodic cKDTree on wrapped centres) against YADE's own real interactions,
+    # after the grains have crossed the x boundary in the shear
+    from hmdem.dem.shear_cell import ShearCell
+
+    cell = ShearCell(200, 1e-3, 1e4, seed=3)
+    cell.compact()
+    cell.start_shear(0.05)
+    cell.run(3000)
+    centres = cell.centres()
+    assert np.ptp(centres[:, 0]) > cell.side  # unwrapped: some grains have crossed
+    pairs, _ = cell.touching(centres)
+    assert len(pairs) > 100
+    cell.run(1)  # YADE's contact detection in this step sees the centres read above
+    mine = np.unique(np.sort(pairs, axis=1), axis=0)
+    assert mine.tolist() == cell.yade_contacts().tolist()
+
+
+@pytest.mark.yade
+def test_shear_stops_at_its_strain_however_few_outputs_a_step_spans(tmp_path):
+    # a review: 100 outputs over strain 0.01 with 10 DEM steps per liquid step ran to 0.05
+    from hmdem.wet.__main__ import main
+
+    out = tmp_path / "run"
+    assert main(["shear", "--n", "64", "--strain", "0.01", "--outputs", "100", "--liquid-every", "10", "--quiet",
+                 "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    config = tomllib.loads((out / "config.toml").read_text())
+    step = summary["shear_rate_per_s"] * 10 * config["cell"]["dem_timestep_s"]  # one liquid step's strain
+    assert 0.01 <= summary["strain"] < 0.01 + 1.5 * step
+    profiles = np.load(out / "profiles.npz")
+    assert np.all(np.diff(profiles["strain"]) > 0) and len(profiles["strain"]) <= 101
+    assert np.isnan(profiles["velocity_over_plate"][0]).all()  # no plate speed before the shear
 
 
 @pytest.mark.yade

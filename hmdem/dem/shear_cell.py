@@ -44,6 +44,7 @@ class ShearCell(SceneClock):
         O.periodic = True
         rng = np.random.default_rng(seed)
         self.radius, self.pressure, self.density = radius, pressure, density
+        self.polydispersity, self.plate_side = polydispersity, plate_side
         self.side = plate_side * 2.0 * radius
         spacing = self.side / round(self.side / (2.2 * radius))  # a loose cubic lattice to start from
         per_layer = round(self.side / spacing) ** 2
@@ -128,6 +129,7 @@ class ShearCell(SceneClock):
         """``centres`` with x and y taken into [0, side)."""
         out = np.array(centres, float)
         out[:, :2] %= self.side
+        out[:, :2][out[:, :2] >= self.side] = 0.0  # -1e-17 % side rounds to side itself
         return out
 
     def touching(self, centres) -> tuple[np.ndarray, np.ndarray]:
@@ -141,6 +143,14 @@ class ShearCell(SceneClock):
         overlap = self.radii[pairs].sum(axis=1) - np.linalg.norm(branch, axis=1)
         touch = overlap >= 0.0
         return pairs[touch], overlap[touch]
+
+    def yade_contacts(self) -> np.ndarray:
+        """Grain pairs (k, 2) in YADE's own real interactions, sorted (a check on :meth:`touching`;
+        read one interaction at a time)."""
+        index = {body: k for k, body in enumerate(self.ids)}
+        pairs = [sorted((index[i.id1], index[i.id2])) for i in self._O.interactions
+                 if i.isReal and i.id1 in index and i.id2 in index]
+        return np.array(sorted(pairs), np.int64).reshape(-1, 2)
 
     def velocities(self) -> np.ndarray:
         """Grain velocities (n, 3) [m/s] (read body by body: for outputs, not every step)."""

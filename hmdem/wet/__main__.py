@@ -76,15 +76,17 @@ def add_shear_parser(sub) -> None:
     s.add_argument("--amplitude", type=number_in(f"a volume in (0, {V_MAX_OVER_R3}] R^3",
                                                  lambda v: 0 < v <= V_MAX_OVER_R3), default=0.01,
                    help="A: the largest initial bridge volume [R^3] (default %(default)g)")
-    s.add_argument("--sigma0", type=positive_number, default=4.0,
-                   help="sigma_0: the initial profile's width [R] (default %(default)g)")
+    s.add_argument("--sigma0", type=number_in("a width in [0.5, 1000] R", lambda v: 0.5 <= v <= 1000), default=4.0,
+                   help="sigma_0: the initial profile's width [R], at least half a slab (default %(default)g)")
     s.add_argument("--cohesion-number", type=number_in("a number >= 0", lambda v: v >= 0), default=0.0,
                    help="eta = 2 pi R gamma cos(theta) / (P R^2); 0 (default) leaves the forces off")
     s.add_argument("--strain", type=number_in("a strain in (0, 1000]", lambda v: 0 < v <= 1000), default=2.0,
                    help="total shear strain (default %(default)g)")
     s.add_argument("--n", type=int_at_least(64, maximum=200_000), default=800, help="grains (default %(default)s)")
-    s.add_argument("--radius", type=positive_number, default=1e-3, help="mean grain radius R [m] (default %(default)g)")
-    s.add_argument("--pressure", type=positive_number, default=1e4, help="plate pressure P [Pa] (default %(default)g)")
+    s.add_argument("--radius", type=number_in("a radius in [1e-7, 1] m", lambda v: 1e-7 <= v <= 1), default=1e-3,
+                   help="mean grain radius R [m] (default %(default)g)")
+    s.add_argument("--pressure", type=number_in("a pressure in [1, 1e9] Pa", lambda v: 1 <= v <= 1e9), default=1e4,
+                   help="plate pressure P [Pa] (default %(default)g)")
     s.add_argument("--stiffness", type=number_in("a ratio in [100, 1e7]", lambda v: 100 <= v <= 1e7), default=2e3,
                    help="Young's modulus over P, sets the overlaps (default %(default)g)")
     s.add_argument("--friction", type=number_in("a coefficient in [0, 10]", lambda v: 0 <= v <= 10), default=0.3,

@@ -9,7 +9,7 @@ their nearest image (``period``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -68,8 +68,11 @@ def pendular_step(liquid: PendularLiquid, centres, radii, model: BridgeModel, to
     if broken.any():
         pressures = {}
         if model.rule in PRESSURE_RULES:
-            pressures = dict(bridge_pressure=bridge_laplace_pressure(liquid.volume, gap, radius, model),
-                             film_pressure=model.surface_tension / radii)  # P_f = +gamma/R (§9 item 15)
+            # the rules share by P_f - P_i, which scales with gamma: gamma cancels, and a model
+            # without forces (gamma = 0, eta^coh = 0) shares as any gamma would, not nothing
+            weighing = model if model.surface_tension > 0 else replace(model, surface_tension=1.0)
+            pressures = dict(bridge_pressure=bridge_laplace_pressure(liquid.volume, gap, radius, weighing),
+                             film_pressure=weighing.surface_tension / radii)  # P_f = +gamma/R (§9 item 15)
         liquid = rupture_bridges(liquid, broken, radii, unit, max_bridge_volume(radius), model.rule, **pressures)
         gap, unit, radius = gap[~broken], unit[~broken], radius[~broken]
     if touching is not None and len(touching):

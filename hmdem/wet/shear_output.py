@@ -18,13 +18,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import InputError, interrupted_status, new_run_directory, open_bar, run_record
+from ..cli import CommandFailed, InputError, interrupted_status, new_run_directory, open_bar, run_record
 from ..rundir import atomic_run_directory, write_json, write_rows, write_toml
 from ..snapshots import write_collection
 from .bridges import rupture_distance
 from .liquid import PRESSURE_RULES
 from .migration import diffusion_law
-from .shear import TABLE_MAX_THETA_DEG, TIMESERIES, ShearSettings, diffusion_constant, run_shear, surface_tension
+from .shear import INITIAL_CUT, TIMESERIES, ShearSettings, diffusion_constant, run_shear, surface_tension
+from .young_laplace import MAX_TABLE_ANGLE
 
 
 class _Bars:
@@ -69,9 +70,9 @@ class _Bars:
 
 def check_shear_arguments(args) -> None:
     """Checks that need more than one flag (one line each, exit 2, nothing written)."""
-    if args.redistribution in PRESSURE_RULES and args.theta > TABLE_MAX_THETA_DEG:
+    if args.redistribution in PRESSURE_RULES and math.radians(args.theta) > MAX_TABLE_ANGLE * (1 + 1e-12):
         raise InputError(f"--theta: the {args.redistribution!r} rule reads the Young-Laplace table, built for "
-                         f"[0, {TABLE_MAX_THETA_DEG:g}] degrees, got {args.theta:g}")
+                         f"[0, {math.degrees(MAX_TABLE_ANGLE):g}] degrees, got {args.theta:g}")
 
 
 def run_shear_command(args, argv, prog: str, launcher: str | None = None) -> int:
@@ -92,44 +93,53 @@ def run_shear_command(args, argv, prog: str, launcher: str | None = None) -> int
             compaction_steps = cell.compact(lambda steps, gap: bars.compacting(steps, gap, args.radius))
         except KeyboardInterrupt:  # Ctrl-C or SIGTERM before the shear: settings only
             pass
+        except RuntimeError as exc:  # the plate never came to rest
+            raise CommandFailed(f"{exc}; try fewer --n or another --pressure") from None
         else:
             bars.close()
-            result = run_shear(cell, settings, bars.shearing)
+            try:
+                result = run_shear(cell, settings, bars.shearing)
+            except ValueError as exc:  # no bridge starts wet
+                raise CommandFailed(f"--sigma0: {exc}") from None
     finally:
         bars.close()
+    taken = result is not None and len(result.frames) > 0
     status = "interrupted" if result is None else result.status
     gamma = surface_tension(args.cohesion_number, args.pressure, args.radius, theta)
     config = {"run": run_record(prog, argv),
-              "cell": {"grains": args.n, "radius_m": args.radius, "polydispersity": 0.1, "pressure_pa": args.pressure,
-                       "stiffness_e_over_p": args.stiffness, "friction": args.friction, "density_kg_m3": cell.density,
-                       "plate_side_grains": 8, "inertial_number": args.inertial_number, "seed": args.seed,
-                       "dem_timestep_s": cell.timestep},
+              "cell": {"grains": args.n, "radius_m": args.radius, "polydispersity": cell.polydispersity,
+                       "pressure_pa": args.pressure, "stiffness_e_over_p": args.stiffness,
+                       "friction": args.friction, "density_kg_m3": cell.density,
+                       "plate_side_grains": cell.plate_side, "inertial_number": args.inertial_number,
+                       "seed": args.seed, "dem_timestep_s": cell.timestep},
               "liquid": {"amplitude_r3": args.amplitude, "sigma0_r": args.sigma0,
                          "cohesion_number": args.cohesion_number, "surface_tension_n_per_m": gamma,
                          "contact_angle_deg": args.theta, "force_law": args.force_law,
-                         "redistribution": args.redistribution, "liquid_every": args.liquid_every},
+                         "redistribution": args.redistribution, "liquid_every": args.liquid_every,
+                         "initial_cut": INITIAL_CUT},
               "shear": {"strain": args.strain, "outputs": args.outputs}}
     if launcher:
         config["launcher"] = {"command": launcher, "python": sys.executable}
-    summary = shear_summary(result, cell, settings, status, compaction_steps, started)
+    summary = shear_summary(result if taken else None, cell, settings, status, compaction_steps, started)
     with atomic_run_directory(out) as tmp:
         write_toml(tmp / "config.toml", config)
         write_json(tmp / "summary.json", summary)
-        if result is not None:
-            write_rows(tmp / "timeseries.csv", TIMESERIES, [_row(r, args.radius) for r in result.rows])
+        if taken:
+            write_rows(tmp / "timeseries.csv", TIMESERIES, [_row(r) for r in result.rows])
             write_profiles(tmp / "profiles.npz", result, args.radius)
             write_paraview(tmp, result)
             plot_profiles(tmp / "profile.png", result, settings, args.radius, status)
-    if result is None:
-        print(f"{prog}: interrupted in the compaction; {out} holds the settings", file=sys.stderr)
+    if not taken:
+        stage = "compaction" if result is None else "first output"
+        print(f"{prog}: interrupted in the {stage}; {out} holds the settings", file=sys.stderr)
         return interrupted_status()
     print(f"sheared to strain {result.frames[-1].strain:.3g}: D = {summary['D_over_R2']:.3g} R^2 "
-          f"(the chapter's fit: {summary['D_chapter_over_R2']:.3g} R^2), {result.ruptures} ruptures, liquid kept to "
-          f"{result.liquid_volume_defect:.1e}; run directory: {out}")
+          f"(the chapter's fit at eta = 0: {summary['D_chapter_over_R2']:.3g} R^2), {result.ruptures} ruptures, "
+          f"liquid kept to {result.liquid_volume_defect:.1e}; run directory: {out}")
     return interrupted_status() if status == "interrupted" else 0
 
 
-def _row(row, radius):
+def _row(row):
     strain, t, bridges, ruptures, v_bridges, v_films, sigma2, wall = row
     return [f"{strain:.6g}", f"{t:.8g}", bridges, ruptures, f"{v_bridges:.17g}", f"{v_films:.17g}", f"{sigma2:.6g}",
             f"{wall:.3f}"]
@@ -139,7 +149,7 @@ def shear_summary(result, cell, settings: ShearSettings, status, compaction_step
     summary = {"status": status, "compaction_steps": compaction_steps,
                "D_chapter_over_R2": float(diffusion_law(settings.amplitude)),
                "inertial_number": settings.inertial_number, "shear_rate_per_s": cell.shear_rate,
-               "plate_gap_over_r": cell.plate_gap / cell.radius}
+               "plate_gap_end_over_r": cell.plate_gap / cell.radius}
     if result is None:
         return {**summary, "wall_time_s": time.perf_counter() - started}
     d, sigma0_2 = diffusion_constant(result)
@@ -150,6 +160,7 @@ def shear_summary(result, cell, settings: ShearSettings, status, compaction_step
             "sigma0_squared_fit_r2": sigma0_2,
             "sigma2_fit_residual": float(np.nanmax(residuals)) if np.isfinite(residuals).any() else math.nan,
             "strain": result.frames[-1].strain,
+            "z_wall_over_r": result.z_wall / cell.radius,
             "ruptures": result.ruptures,
             "bridges_start": len(result.frames[0].pairs),
             "bridges_end": len(result.frames[-1].pairs),
@@ -168,6 +179,8 @@ def write_profiles(path: Path, result, radius: float) -> None:
                         grains=np.array([f.count for f in frames]),
                         velocity_over_plate=np.array([f.velocity for f in frames]),
                         sigma2_over_r2=np.array([f.sigma2 for f in frames]),
+                        fit_amplitude_over_r3=np.array([f.fit.amplitude if f.fit else np.nan for f in frames]),
+                        fit_centre_over_r=np.array([f.fit.centre if f.fit else np.nan for f in frames]),
                         fit_residual=np.array([f.residual for f in frames]))
 
 
@@ -181,7 +194,7 @@ def write_paraview(directory: Path, result) -> None:
     for k, f in enumerate(result.frames):
         name = f"snapshots/grains_{k:04d}.vtu"
         meshio.Mesh(f.centres, [("vertex", np.arange(len(f.centres))[:, None])],
-                    point_data={"radius": f.radius, "film_volume": f.film}).write(directory / name)
+                    point_data={"radius": f.grain_radii, "film_volume": f.film}).write(directory / name)
         grains.append((f.t, name))
         ends = f.centres[f.pairs[:, 0]]
         m = len(f.pairs)
@@ -205,7 +218,12 @@ def plot_profiles(path: Path, result, settings: ShearSettings, radius: float, st
     shown = sorted({0, len(result.frames) // 2, len(result.frames) - 1})
     for k in shown:
         f = result.frames[k]
-        left.plot(np.where(f.count > 0, f.q, np.nan) / radius**3, middle, "o-", ms=3, label=f"strain {f.strain:.2f}, σ² = {f.sigma2:.1f} R²")
+        line, = left.plot(np.where(f.count > 0, f.q, np.nan) / radius**3, middle, "o", ms=3,
+                          label=f"strain {f.strain:.2f}, σ² = {f.sigma2:.1f} R²")
+        if f.fit is not None:
+            z = np.linspace(middle[0], middle[-1], 300)
+            left.plot(f.fit.amplitude * np.exp(-(z - f.fit.centre) ** 2 / f.fit.sigma2), z, "-", lw=1,
+                      color=line.get_color())
     left.set_xlabel("Q: bridge volume per grain [R³]")
     left.set_ylabel("z / R")
     left.legend(fontsize=8)
@@ -217,7 +235,7 @@ def plot_profiles(path: Path, result, settings: ShearSettings, radius: float, st
         right.plot(strain, s0 + 4 * d * strain, "k-", lw=1, label=f"σ₀² + 4Dγ, D = {d:.3f} R²")
     d_chapter = float(diffusion_law(settings.amplitude))
     right.plot(strain, sigma2[0] + 4 * d_chapter * strain, "r--", lw=1,
-               label=f"chapter: D = {d_chapter:.3f} R²")
+               label=f"chapter at η = 0: D = {d_chapter:.3f} R²")
     right.set_xlabel("shear strain γ")
     right.set_ylabel("σ² [R²]")
     right.legend(fontsize=8)
