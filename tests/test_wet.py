@@ -272,7 +272,11 @@ def test_bridge_pull_on_yade_spheres(tmp_path, law, theta_deg):
     assert tuple(rows[0]) == TIMESERIES
     last = dict(zip(rows[0], map(float, rows[-1])))
     assert last["volume"] == 0 and last["film_volume"] == pytest.approx(0.03 * radius**3, rel=1e-12)
-    assert (out / "force.png").stat().st_size > 0 and (out / "config.toml").exists()
+    assert (out / "force.png").stat().st_size > 0
+    import tomllib
+
+    # the replay command, not the bare subcommand (a field named "command" overwrote it until session 76)
+    assert tomllib.loads((out / "config.toml").read_text())["run"]["command"].startswith("python -m hmdem.wet bridge")
 
 
 @pytest.mark.parametrize("flags, message", [

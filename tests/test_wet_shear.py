@@ -6,10 +6,14 @@ from __future__ import annotations
 import csv
 import json
 import math
+import signal
+import subprocess
+import sys
 import tomllib
 
 import numpy as np
 import pytest
+from conftest import popen_interruptible
 
 from hmdem.wet.migration import (diffusion_fit, diffusion_law, fit_gaussian, gaussian_bridges, liquid_profile,
                                  water_content)
@@ -214,15 +218,12 @@ def test_shear_stops_at_its_strain_however_few_outputs_a_step_spans(tmp_path):
 
 @pytest.mark.yade
 def test_shear_ctrl_c_leaves_a_valid_partial_run(tmp_path):
-    # a long run stopped by Ctrl-C in the shear keeps its outputs so far, status "interrupted", exit 130
-    import signal
-    import subprocess
-    import sys
-
+    # a long run stopped by Ctrl-C in the shear keeps its outputs so far, status "interrupted",
+    # exit 130 (popen_interruptible: SIGINT as from a terminal, also under `make test &`)
     out = tmp_path / "run"
-    proc = subprocess.Popen([sys.executable, "-m", "hmdem.wet", "shear", "--n", "200", "--strain", "100",
-                             "--outputs", "2000", "--liquid-every", "10", "--out", str(out)],
-                            stderr=subprocess.PIPE, text=True, bufsize=1)
+    proc = popen_interruptible([sys.executable, "-m", "hmdem.wet", "shear", "--n", "200", "--strain", "20",
+                                "--outputs", "400", "--liquid-every", "10", "--out", str(out)],
+                               stdout=subprocess.DEVNULL, bufsize=1)
     seen = ""
     while "shear:" not in seen:  # the strain bar: the shear has begun
         char = proc.stderr.read(1)
@@ -242,7 +243,6 @@ def test_shear_ctrl_c_leaves_a_valid_partial_run(tmp_path):
 @pytest.mark.yade
 def test_wet_shear_runs_under_yade_batch(tmp_path):
     # existing YADE users: yade-batch + readParamsFromTable drive the same run as the CLI
-    import subprocess
     from pathlib import Path
 
     script = Path(__file__).resolve().parent.parent / "yade_scripts" / "wet_shear.py"
