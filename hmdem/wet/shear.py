@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..interrupts import deferred_interrupts
-from .bridges import max_bridge_volume, rupture_distance
+from .bridges import bridge_force, max_bridge_volume, rupture_distance
 from .liquid import PendularLiquid, bridge_radii
 from .migration import GaussianFit, diffusion_fit, fit_gaussian, gaussian_bridges, liquid_profile
 from .pendular import BridgeModel, bridge_laplace_pressure, branches, pendular_step
@@ -142,8 +142,6 @@ def run_shear(cell, settings: ShearSettings, progress=None) -> ShearResult:
     return what the run directory needs. Ctrl-C or SIGTERM ends the run early with status
     "interrupted" and the outputs so far (none, if it comes before the first is taken).
     ``progress(strain)`` after each liquid step. Raises ValueError when no bridge starts wet."""
-    from .bridges import bridge_force
-
     gamma = surface_tension(settings.cohesion_number, cell.pressure, cell.radius, settings.contact_angle)
     model = BridgeModel(gamma, settings.contact_angle, settings.force_law, 0.0, settings.rule)
     result = ShearResult(z_wall=cell.plate_gap)
